@@ -1,0 +1,1 @@
+//! Criterion benchmarks of wipdr live in `benches/benches/`; this library is empty.
