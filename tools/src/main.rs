@@ -1,1 +1,84 @@
-fn main() {}
+//! `wipdr` — the command-line program of the wipdr workspace: inspect recorded walks,
+//! simulate synthetic ones, plot floors, benchmark matchers, evaluate and sweep fusion schemes.
+//!
+//! Each subcommand lives in its own module under `cmd/` with an `Args` struct and a `run`
+//! function. Only this program prints and installs a `tracing` subscriber; the libraries log.
+
+use clap::{Parser, Subcommand};
+use tracing_subscriber::EnvFilter;
+
+mod cmd;
+mod progress;
+
+/// Indoor positioning by Wi-Fi fingerprinting fused with pedestrian dead reckoning.
+#[derive(Debug, Parser)]
+#[command(name = "wipdr", version, about, long_about = None)]
+struct Cli {
+    /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// The subcommand.
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Summarise a walk file or a floor folder, with the parse report.
+    Inspect(cmd::inspect::Args),
+    /// Generate a synthetic floor with walks and a survey radio map (reproducible from a seed).
+    Simulate(cmd::simulate::Args),
+    /// Draw pictures: `wipdr plot floor DIR --out FILE.png`.
+    Plot(cmd::plot::Args),
+    /// Evaluate fingerprint matchers on benchmark datasets (train.csv / test.csv).
+    FingerprintEval(cmd::fingerprint_eval::Args),
+    /// Cluster a dataset's radio map with affinity propagation.
+    Cluster(cmd::cluster::Args),
+    /// Fit PDR step-length coefficients and calibration from walks with waypoints.
+    PdrFit(cmd::pdr_fit::Args),
+    /// Evaluate PDR on recorded walks under the protocol folds.
+    PdrEval(cmd::pdr_eval::Args),
+    /// Evaluate fusion schemes on recorded walks under the protocol folds.
+    Eval(cmd::eval::Args),
+    /// Run the evaluation on the embedded synthetic fixtures, in seconds.
+    Demo(cmd::demo::Args),
+    /// Parameter sweeps over scheme configs, resumable and shardable.
+    Sweep(cmd::sweep::Args),
+    /// Wi-Fi refresh and loss rates against RSSI, with the RR model fit (paper 002 §3.1).
+    WifiStats(cmd::wifi_stats::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let level = match cli.verbose {
+        0 => "warn",
+        1 => "info",
+        2 => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(level));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+    let result = match cli.command {
+        Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Plot(a) => cmd::plot::run(a),
+        Command::FingerprintEval(a) => cmd::fingerprint_eval::run(a),
+        Command::Cluster(a) => cmd::cluster::run(a),
+        Command::PdrFit(a) => cmd::pdr_fit::run(a),
+        Command::PdrEval(a) => cmd::pdr_eval::run(a),
+        Command::Eval(a) => cmd::eval::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
+        Command::Sweep(a) => cmd::sweep::run(a),
+        Command::WifiStats(a) => cmd::wifi_stats::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

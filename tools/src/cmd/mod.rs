@@ -1,0 +1,13 @@
+//! One module per subcommand: `Args` (clap) and `run`.
+
+pub mod cluster;
+pub mod demo;
+pub mod eval;
+pub mod fingerprint_eval;
+pub mod inspect;
+pub mod pdr_eval;
+pub mod pdr_fit;
+pub mod plot;
+pub mod simulate;
+pub mod sweep;
+pub mod wifi_stats;
