@@ -1,1 +1,3 @@
-//! placeholder
+//! # wipdr-io — readers and writers (placeholder being built)
+
+pub mod fingerprint_csv;

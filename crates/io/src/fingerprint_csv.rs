@@ -1,0 +1,1 @@
+//! Fingerprint benchmark CSV reader (being built).
