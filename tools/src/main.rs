@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use tracing_subscriber::EnvFilter;
 
 mod cmd;
+mod plotting;
 mod progress;
 
 /// Indoor positioning by Wi-Fi fingerprinting fused with pedestrian dead reckoning.

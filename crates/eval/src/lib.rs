@@ -1,1 +1,25 @@
-//! placeholder
+//! # wipdr-eval — the one accuracy protocol of wipdr
+//!
+//! Implements `docs/evaluation.md` (shared with the papers' comparisons): 5-fold by walk per
+//! floor, radio map and PDR calibration learned from the training folds only, every scheme run
+//! causally over each test walk, errors scored at waypoints ([`scoring`]), summarised per walk,
+//! per floor and pooled ([`report`]). Fusion schemes are started from the first Wi-Fi fix; the
+//! PDR-only baseline from the true first waypoint (labelled so).
+//!
+//! ```
+//! use wipdr_core::{Point2, Waypoint};
+//! use wipdr_eval::report::{EvalReport, WalkResult};
+//! use wipdr_eval::scoring::score_track;
+//!
+//! let truth = [Waypoint { t: 1_000, position: Point2::new(0.0, 0.0) }];
+//! let track = vec![(500, Point2::new(3.0, 4.0))];
+//! let score = score_track(&truth, &track, None);
+//! let walks = vec![WalkResult { floor: "F1".into(), walk: "w".into(), fold: 0,
+//!                               scheme: "wifi".into(), score }];
+//! let report = EvalReport::from_walks(vec!["wifi".into()], vec!["F1".into()], walks);
+//! assert_eq!(report.pooled["wifi"].mean, 5.0);
+//! ```
+
+pub mod report;
+pub mod scoring;
+pub mod sweep;

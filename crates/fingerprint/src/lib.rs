@@ -1,1 +1,65 @@
-//! placeholder
+//! # wipdr-fingerprint — Wi-Fi fingerprinting: radio maps and matchers
+//!
+//! Turns a Wi-Fi scan into a position by comparing it with a radio map of reference
+//! fingerprints. Implements the radio map of paper 000 §2.1 (eq. 2) and paper 001 §4.1, the
+//! NN / KNN / WKNN estimators of paper 000 eq. 3-4, paper 001 eq. 7 and paper 002 eq. 1-3 with
+//! online filtering (paper 002 §3.2.1), and the deterministic k-NN variants of the literature
+//! (Torres-Sospedra et al. 2015: data representations and distances), by fast exact brute
+//! force.
+//!
+//! ## The pieces
+//!
+//! - [`RadioMap`]: reference points ([`ReferencePoint`]: position, optional floor/building)
+//!   with mean RSS, sample count and spread per AP, an AP vocabulary ([`ApVocabulary`], BSSID
+//!   or column name <-> column) and a "not heard" fill value (default -110 dBm). Built from
+//!   benchmark CSVs ([`RadioMap::from_table`]) or recorded walks ([`walk_map`]); serde and
+//!   bincode.
+//! - [`Query`]: what every matcher takes: the heard APs as sorted `(column, dBm)` pairs. A real
+//!   [`wipdr_core::WifiScan`] ([`Query::from_scan`]) and a benchmark row ([`Query::from_row`])
+//!   both become one, through the same [`QueryFilter`] (RSSI threshold, staleness; unknown APs
+//!   ignored and counted in [`QueryStats`]).
+//! - [`Matcher`]: **the one matcher trait**. `locate(&Query) -> WifiObservation`: estimate, K
+//!   candidates (position, signal distance, weight, map index) ordered by distance, the number
+//!   of reference points visited, floor/building by majority. See the trait for the full
+//!   contract; [`observation_from_neighbours`] is the shared last step (weights, estimate,
+//!   majority) for any matcher that ends in a k-NN.
+//! - [`KnnMatcher`] with [`KnnConfig`]: NN, KNN, WKNN (`1/d^w`), over the distances of
+//!   [`distance`] (Manhattan, Euclidean, squared Euclidean, Sørensen, Neyman, PLGD, shared-AP)
+//!   and representations (raw, positive, exponential, powed).
+//!
+//! ```
+//! use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
+//! use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
+//!
+//! let train = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
+//!              -40,-70,100,0,0,0,0,0\n\
+//!              -70,-40,-80,10,0,0,0,0\n\
+//!              100,-70,-40,20,0,0,1,0\n";
+//! let table = read_fingerprint_csv_from(train.as_bytes(), "train").unwrap();
+//! let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
+//! let wknn = KnnMatcher::new(map, KnnConfig::wknn(2, 1.0)).unwrap();
+//! let query = Query::from_row(&[-45.0, -68.0, 100.0], wknn.map(), &QueryFilter::default()).unwrap();
+//! let obs = wknn.locate(&query).unwrap();
+//! assert_eq!(obs.candidates[0].index, 0);
+//! assert!(obs.estimate.x > 0.0 && obs.estimate.x < 10.0);
+//! assert_eq!(obs.floor, Some(0));
+//! ```
+
+pub mod benchmark;
+pub mod distance;
+pub mod error;
+pub mod knn;
+pub mod matcher;
+pub mod query;
+pub mod radio_map;
+pub mod walk_map;
+
+pub use distance::{Distance, Metric, Representation};
+pub use error::FingerprintError;
+pub use knn::{KnnConfig, KnnMatcher};
+pub use matcher::{Matcher, Weighting, majority, observation_from_neighbours, weights_of};
+pub use query::{Query, QueryFilter, QueryStats};
+pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
+
+pub mod affinity;
+pub mod mixdis;

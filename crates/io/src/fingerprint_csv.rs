@@ -1,1 +1,523 @@
-//! Fingerprint benchmark CSV reader (being built).
+//! Fingerprint benchmark CSV files: reader and writer.
+//!
+//! The nine public benchmarks in `../shared/data/fingerprint/` (DSI, LIB, TUT, UJI) share one
+//! layout: a header `ap_000,ap_001,…,ap_NNN,x,y,z,floor,building`, then one reference point or
+//! query per line. RSS values are in dBm; the value `100` means "not detected"
+//! ([`NOT_DETECTED`]). `x, y, z` are metres, `floor` and `building` integers.
+//!
+//! The reader is strict: a ragged row, a number that does not parse, a non-finite value or an
+//! RSS outside `[-120, 0]` dBm (other than `100`) is a typed [`FingerprintCsvError`] naming the
+//! file, the 1-based line and column and the header field. The writer produces the same layout
+//! (the simulator writes its survey maps with it).
+//!
+//! ```
+//! use wipdr_io::fingerprint_csv::{read_fingerprint_csv_from, write_fingerprint_csv_to};
+//! let text = "ap_000,ap_001,x,y,z,floor,building\n-60,100,1.5,2.0,0,0,0\n";
+//! let table = read_fingerprint_csv_from(text.as_bytes(), "inline").unwrap();
+//! assert_eq!(table.n_rows(), 1);
+//! assert_eq!(table.rss_at(0, 0), Some(-60.0));
+//! assert_eq!(table.rss_at(0, 1), None); // 100 = not detected
+//! let mut out = Vec::new();
+//! write_fingerprint_csv_to(&mut out, &table).unwrap();
+//! assert_eq!(read_fingerprint_csv_from(&out[..], "again").unwrap(), table);
+//! ```
+
+use serde::{Deserialize, Serialize};
+use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// The RSS value that means "access point not detected" in the benchmark files.
+pub const NOT_DETECTED: f32 = 100.0;
+/// Weakest RSS accepted by the reader, dBm.
+pub const MIN_VALID_RSS_DBM: f32 = -120.0;
+/// Strongest RSS accepted by the reader, dBm.
+pub const MAX_VALID_RSS_DBM: f32 = 0.0;
+
+/// The trailing label columns, in file order.
+pub const LABEL_COLUMNS: [&str; 5] = ["x", "y", "z", "floor", "building"];
+
+/// Errors of the fingerprint CSV reader and writer. Lines and columns are 1-based.
+#[derive(Debug, Error)]
+pub enum FingerprintCsvError {
+    /// The file could not be opened, read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The file has no header line.
+    #[error("{path}: empty file (no header)")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The header is not `ap_…,x,y,z,floor,building`.
+    #[error("{path}: line 1: bad header: {message}")]
+    Header {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A row with a different number of fields than the header.
+    #[error("{path}: line {line}: ragged row with {found} fields, header has {expected}")]
+    Ragged {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// Number of header fields.
+        expected: usize,
+        /// Number of fields found.
+        found: usize,
+    },
+    /// A field that does not parse as a number (or an integer for floor/building).
+    #[error("{path}: line {line}, column {column} ({field}): cannot parse {value:?}")]
+    BadNumber {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// 1-based column number.
+        column: usize,
+        /// The header name of the column.
+        field: String,
+        /// The offending text (at most 64 characters).
+        value: String,
+    },
+    /// A non-finite value, or an RSS outside `[-120, 0]` dBm that is not the not-detected marker.
+    #[error("{path}: line {line}, column {column} ({field}): value {value} out of range")]
+    OutOfRange {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// 1-based column number.
+        column: usize,
+        /// The header name of the column.
+        field: String,
+        /// The offending value.
+        value: f64,
+    },
+    /// A table whose parts disagree in size (writer side).
+    #[error("inconsistent table: {0}")]
+    Inconsistent(String),
+}
+
+/// Position and floor/building label of one row.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FingerprintLabel {
+    /// East / map-right coordinate, metres.
+    pub x: f64,
+    /// North / map-up coordinate, metres.
+    pub y: f64,
+    /// Height, metres.
+    pub z: f64,
+    /// Floor index.
+    pub floor: i32,
+    /// Building index.
+    pub building: i32,
+}
+
+/// A whole benchmark file: AP names, a dense row-major RSS matrix and the labels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct FingerprintTable {
+    /// The AP column names (`ap_000` …), in file order.
+    pub ap_names: Vec<String>,
+    /// RSS in dBm, row-major `n_rows x ap_names.len()`; [`NOT_DETECTED`] (100) where not heard.
+    pub rss: Vec<f32>,
+    /// One label per row.
+    pub labels: Vec<FingerprintLabel>,
+}
+
+impl FingerprintTable {
+    /// An empty table with the given AP columns.
+    pub fn new(ap_names: Vec<String>) -> Self {
+        Self {
+            ap_names,
+            rss: Vec::new(),
+            labels: Vec::new(),
+        }
+    }
+
+    /// Number of rows (reference points or queries).
+    pub fn n_rows(&self) -> usize {
+        self.labels.len()
+    }
+
+    /// Number of AP columns.
+    pub fn n_aps(&self) -> usize {
+        self.ap_names.len()
+    }
+
+    /// The raw RSS row `i` (100 = not detected). Panics if `i >= n_rows()`.
+    pub fn row(&self, i: usize) -> &[f32] {
+        let m = self.n_aps();
+        &self.rss[i * m..(i + 1) * m]
+    }
+
+    /// RSS of AP `ap` in row `i`, `None` when not detected.
+    pub fn rss_at(&self, i: usize, ap: usize) -> Option<f32> {
+        let v = self.row(i)[ap];
+        (v != NOT_DETECTED).then_some(v)
+    }
+
+    /// Appends a row; `rss` must have `n_aps()` values (100 = not detected).
+    pub fn push_row(
+        &mut self,
+        rss: &[f32],
+        label: FingerprintLabel,
+    ) -> Result<(), FingerprintCsvError> {
+        if rss.len() != self.n_aps() {
+            return Err(FingerprintCsvError::Inconsistent(format!(
+                "row has {} RSS values, table has {} APs",
+                rss.len(),
+                self.n_aps()
+            )));
+        }
+        self.rss.extend_from_slice(rss);
+        self.labels.push(label);
+        Ok(())
+    }
+}
+
+/// Reads a benchmark CSV file.
+pub fn read_fingerprint_csv(path: impl AsRef<Path>) -> Result<FingerprintTable, FingerprintCsvError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|source| FingerprintCsvError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    read_impl(BufReader::with_capacity(1 << 20, file), path)
+}
+
+/// Reads a benchmark CSV from any reader; `name` stands for the file in error messages.
+pub fn read_fingerprint_csv_from<R: BufRead>(
+    reader: R,
+    name: &str,
+) -> Result<FingerprintTable, FingerprintCsvError> {
+    read_impl(reader, Path::new(name))
+}
+
+/// Reads `DIR/train.csv` (the radio map) and `DIR/test.csv` (the queries) of one benchmark.
+pub fn read_dataset(
+    dir: impl AsRef<Path>,
+) -> Result<(FingerprintTable, FingerprintTable), FingerprintCsvError> {
+    let dir = dir.as_ref();
+    let train = read_fingerprint_csv(dir.join("train.csv"))?;
+    let test = read_fingerprint_csv(dir.join("test.csv"))?;
+    if train.ap_names != test.ap_names {
+        return Err(FingerprintCsvError::Header {
+            path: dir.join("test.csv"),
+            message: "AP columns differ from train.csv".into(),
+        });
+    }
+    Ok((train, test))
+}
+
+fn read_impl<R: BufRead>(
+    mut reader: R,
+    path: &Path,
+) -> Result<FingerprintTable, FingerprintCsvError> {
+    let io_err = |source| FingerprintCsvError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut line = String::new();
+    if reader.read_line(&mut line).map_err(io_err)? == 0 {
+        return Err(FingerprintCsvError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    let header: Vec<String> = line
+        .trim_end_matches(['\n', '\r'])
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
+    let header_err = |message: String| FingerprintCsvError::Header {
+        path: path.to_path_buf(),
+        message,
+    };
+    if header.len() < LABEL_COLUMNS.len() {
+        return Err(header_err(format!(
+            "{} columns, need at least the 5 label columns",
+            header.len()
+        )));
+    }
+    let n_aps = header.len() - LABEL_COLUMNS.len();
+    for (k, want) in LABEL_COLUMNS.iter().enumerate() {
+        let got = &header[n_aps + k];
+        if !got.eq_ignore_ascii_case(want) {
+            return Err(header_err(format!(
+                "column {} is {got:?}, expected {want:?}",
+                n_aps + k + 1
+            )));
+        }
+    }
+    if let Some(bad) = header[..n_aps].iter().find(|h| h.is_empty()) {
+        return Err(header_err(format!("empty AP column name {bad:?}")));
+    }
+    let mut table = FingerprintTable::new(header[..n_aps].to_vec());
+    let mut lineno = 1usize;
+    let mut row = vec![0f32; n_aps];
+    loop {
+        line.clear();
+        if reader.read_line(&mut line).map_err(io_err)? == 0 {
+            break;
+        }
+        lineno += 1;
+        let text = line.trim_end_matches(['\n', '\r']);
+        if text.trim().is_empty() {
+            continue;
+        }
+        let found = text.split(',').count();
+        if found != header.len() {
+            return Err(FingerprintCsvError::Ragged {
+                path: path.to_path_buf(),
+                line: lineno,
+                expected: header.len(),
+                found,
+            });
+        }
+        let mut label = [0f64; 5];
+        for (col, field) in text.split(',').enumerate() {
+            let field = field.trim();
+            let bad = || FingerprintCsvError::BadNumber {
+                path: path.to_path_buf(),
+                line: lineno,
+                column: col + 1,
+                field: header[col].clone(),
+                value: field.chars().take(64).collect(),
+            };
+            let v: f64 = field.parse().map_err(|_| bad())?;
+            let out_of_range = || FingerprintCsvError::OutOfRange {
+                path: path.to_path_buf(),
+                line: lineno,
+                column: col + 1,
+                field: header[col].clone(),
+                value: v,
+            };
+            if !v.is_finite() {
+                return Err(out_of_range());
+            }
+            if col < n_aps {
+                let r = v as f32;
+                if r != NOT_DETECTED && !(MIN_VALID_RSS_DBM..=MAX_VALID_RSS_DBM).contains(&r) {
+                    return Err(out_of_range());
+                }
+                row[col] = r;
+            } else {
+                let k = col - n_aps;
+                if k >= 3 && (v.fract() != 0.0 || v.abs() > f64::from(i32::MAX)) {
+                    return Err(bad());
+                }
+                label[k] = v;
+            }
+        }
+        table.rss.extend_from_slice(&row);
+        table.labels.push(FingerprintLabel {
+            x: label[0],
+            y: label[1],
+            z: label[2],
+            floor: label[3] as i32,
+            building: label[4] as i32,
+        });
+    }
+    Ok(table)
+}
+
+/// Writes a table as a benchmark CSV file.
+pub fn write_fingerprint_csv(
+    path: impl AsRef<Path>,
+    table: &FingerprintTable,
+) -> Result<(), FingerprintCsvError> {
+    let path = path.as_ref();
+    let io_err = |source| FingerprintCsvError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::create(path).map_err(io_err)?;
+    let mut w = BufWriter::new(file);
+    write_fingerprint_csv_to(&mut w, table)?;
+    w.flush().map_err(io_err)
+}
+
+/// Writes a table in the benchmark layout to any writer. RSS values are written with up to
+/// two decimals (integers without), positions with four.
+pub fn write_fingerprint_csv_to<W: Write>(
+    mut w: W,
+    table: &FingerprintTable,
+) -> Result<(), FingerprintCsvError> {
+    let m = table.n_aps();
+    if table.rss.len() != m * table.n_rows() {
+        return Err(FingerprintCsvError::Inconsistent(format!(
+            "{} RSS values for {} rows x {m} APs",
+            table.rss.len(),
+            table.n_rows()
+        )));
+    }
+    let io_err = |source| FingerprintCsvError::Io {
+        path: PathBuf::from("<writer>"),
+        source,
+    };
+    let mut header: Vec<&str> = table.ap_names.iter().map(String::as_str).collect();
+    header.extend(LABEL_COLUMNS);
+    writeln!(w, "{}", header.join(",")).map_err(io_err)?;
+    let mut buf = String::new();
+    for (i, label) in table.labels.iter().enumerate() {
+        buf.clear();
+        for &v in table.row(i) {
+            if !v.is_finite() {
+                return Err(FingerprintCsvError::Inconsistent(format!(
+                    "row {i}: non-finite RSS"
+                )));
+            }
+            if v.fract() == 0.0 {
+                buf.push_str(&format!("{},", v as i64));
+            } else {
+                buf.push_str(&format!("{:.2},", v));
+            }
+        }
+        if !(label.x.is_finite() && label.y.is_finite() && label.z.is_finite()) {
+            return Err(FingerprintCsvError::Inconsistent(format!(
+                "row {i}: non-finite position"
+            )));
+        }
+        buf.push_str(&format!(
+            "{:.4},{:.4},{:.4},{},{}",
+            label.x, label.y, label.z, label.floor, label.building
+        ));
+        writeln!(w, "{buf}").map_err(io_err)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEADER: &str = "ap_000,ap_001,x,y,z,floor,building\n";
+
+    fn read(text: &str) -> Result<FingerprintTable, FingerprintCsvError> {
+        read_fingerprint_csv_from(text.as_bytes(), "t.csv")
+    }
+
+    #[test]
+    fn reads_rows_and_not_detected() {
+        let t = read(&format!("{HEADER}-60,100,1.5,2,3.7,1,0\r\n-70.5,-80,0,0,0,0,2\n")).unwrap();
+        assert_eq!(t.n_rows(), 2);
+        assert_eq!(t.n_aps(), 2);
+        assert_eq!(t.rss_at(0, 1), None);
+        assert_eq!(t.rss_at(1, 0), Some(-70.5));
+        assert_eq!(t.labels[0].floor, 1);
+        assert_eq!(t.labels[1].building, 2);
+        assert_eq!(t.labels[0].z, 3.7);
+    }
+
+    #[test]
+    fn ragged_row_names_line() {
+        let e = read(&format!("{HEADER}-60,100,1,2,0,0,0\n-60,1,2,0,0,0\n")).unwrap_err();
+        match e {
+            FingerprintCsvError::Ragged {
+                line,
+                expected,
+                found,
+                ..
+            } => assert_eq!((line, expected, found), (3, 7, 6)),
+            other => panic!("wrong error {other}"),
+        }
+    }
+
+    #[test]
+    fn bad_number_names_line_column_field() {
+        let e = read(&format!("{HEADER}-60,abc,1,2,0,0,0\n")).unwrap_err();
+        match &e {
+            FingerprintCsvError::BadNumber {
+                line,
+                column,
+                field,
+                value,
+                ..
+            } => {
+                assert_eq!((*line, *column), (2, 2));
+                assert_eq!(field, "ap_001");
+                assert_eq!(value, "abc");
+            }
+            other => panic!("wrong error {other}"),
+        }
+        assert!(e.to_string().contains("t.csv"));
+        let e = read(&format!("{HEADER}-60,-70,1,2,0,1.5,0\n")).unwrap_err();
+        assert!(matches!(e, FingerprintCsvError::BadNumber { column: 6, .. }));
+    }
+
+    #[test]
+    fn out_of_range_and_nan_rejected() {
+        for bad in ["-130", "5", "NaN", "inf"] {
+            let e = read(&format!("{HEADER}-60,{bad},1,2,0,0,0\n")).unwrap_err();
+            assert!(
+                matches!(e, FingerprintCsvError::OutOfRange { line: 2, column: 2, .. }),
+                "{bad}: {e}"
+            );
+        }
+        let e = read(&format!("{HEADER}-60,-60,NaN,2,0,0,0\n")).unwrap_err();
+        assert!(matches!(e, FingerprintCsvError::OutOfRange { column: 3, .. }));
+    }
+
+    #[test]
+    fn header_errors() {
+        assert!(matches!(read(""), Err(FingerprintCsvError::Empty { .. })));
+        assert!(matches!(
+            read("ap_000,x,y,z,floor\n"),
+            Err(FingerprintCsvError::Header { .. })
+        ));
+        assert!(matches!(read("x,y\n"), Err(FingerprintCsvError::Header { .. })));
+    }
+
+    #[test]
+    fn writer_roundtrip_and_checks() {
+        let mut t = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into()]);
+        let label = FingerprintLabel {
+            x: 1.25,
+            y: -3.5,
+            z: 0.0,
+            floor: 2,
+            building: 1,
+        };
+        t.push_row(&[-61.0, NOT_DETECTED], label).unwrap();
+        t.push_row(&[-61.25, -99.0], label).unwrap();
+        assert!(t.push_row(&[-61.0], label).is_err());
+        let mut out = Vec::new();
+        write_fingerprint_csv_to(&mut out, &t).unwrap();
+        let back = read_fingerprint_csv_from(&out[..], "x").unwrap();
+        assert_eq!(back, t);
+        let mut bad = t.clone();
+        bad.rss[0] = f32::NAN;
+        assert!(write_fingerprint_csv_to(Vec::new(), &bad).is_err());
+    }
+
+    #[test]
+    fn file_roundtrip() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("train.csv");
+        let mut t = FingerprintTable::new(vec!["ap_000".into()]);
+        t.push_row(
+            &[-50.0],
+            FingerprintLabel {
+                x: 0.0,
+                y: 1.0,
+                z: 0.0,
+                floor: 0,
+                building: 0,
+            },
+        )
+        .unwrap();
+        write_fingerprint_csv(&p, &t).unwrap();
+        assert_eq!(read_fingerprint_csv(&p).unwrap(), t);
+        let e = read_fingerprint_csv(dir.path().join("missing.csv")).unwrap_err();
+        assert!(matches!(e, FingerprintCsvError::Io { .. }));
+    }
+}

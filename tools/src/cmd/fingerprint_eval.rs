@@ -1,10 +1,280 @@
-//! `wipdr fingerprint-eval` (not implemented yet).
+//! `wipdr fingerprint-eval`: fingerprint matchers on the public benchmark datasets
+//! (`DIR/train.csv` = radio map, `DIR/test.csv` = queries).
+//!
+//! ```text
+//! wipdr fingerprint-eval --dataset ../shared/data/fingerprint/DSI1 --matcher nn wknn --k 5
+//! wipdr fingerprint-eval --dataset ../shared/data/fingerprint/* --matcher tuned-cv --json out.json
+//! ```
+//!
+//! Matcher names: `nn`, `knn`, `wknn` (1/d), `wknn2` (1/d^2), each optionally with settings
+//! `NAME:k=13,metric=sorensen,rep=powed,w=1` (metric: manhattan, euclidean, sqeuclidean,
+//! sorensen, neyman, plgd, shared_ap; rep: raw, positive, exponential, powed; w: exponent of
+//! 1/d^w, 0 = uniform); `tuned-cv` picks the literature k-NN configuration by
+//! cross-validation on train.csv (honest), `tuned-test` picks it on test.csv (as the papers
+//! did: optimistic, labelled so).
+
+use anyhow::{Context, bail};
+use std::path::PathBuf;
+use std::sync::Arc;
+use wipdr_fingerprint::benchmark::{self, Grid, Truth};
+use wipdr_fingerprint::{
+    KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap, RadioMapConfig,
+    Representation, Weighting,
+};
+use wipdr_io::fingerprint_csv::read_dataset;
 
 /// Arguments of `wipdr fingerprint-eval`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Dataset folders, each with train.csv and test.csv.
+    #[arg(long, num_args = 1.., required = true)]
+    pub dataset: Vec<PathBuf>,
+    /// Matchers: nn, knn, wknn, wknn2, NAME:k=..,metric=..,rep=..,w=.., tuned-cv, tuned-test.
+    #[arg(long, num_args = 1.., default_values_t = ["nn".to_string(), "knn".to_string(), "wknn".to_string()])]
+    pub matcher: Vec<String>,
+    /// Number of neighbours for knn / wknn (unless the matcher spec sets k).
+    #[arg(long, default_value_t = 5)]
+    pub k: usize,
+    /// The "not heard" RSS value of the radio map, dBm.
+    #[arg(long, default_value_t = -110.0, allow_hyphen_values = true)]
+    pub not_heard: f32,
+    /// Online RSSI threshold (dBm): weaker readings are dropped.
+    #[arg(long, allow_hyphen_values = true)]
+    pub min_rssi: Option<f64>,
+    /// Folds of the cross-validation of `tuned-cv`.
+    #[arg(long, default_value_t = 5)]
+    pub folds: usize,
+    /// At most this many held-out rows are scored in `tuned-cv` (evenly spaced).
+    #[arg(long, default_value_t = 3000)]
+    pub tune_max_queries: usize,
+    /// Largest k of the tuning grid.
+    #[arg(long, default_value_t = 15)]
+    pub tune_k_max: usize,
+    /// Batch Euclidean queries through one matrix product (faer) instead of the sparse engine.
+    #[arg(long)]
+    pub gemm: bool,
+    /// Write the results as JSON (`{"results": [...]}`).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(Debug, serde::Serialize)]
+struct Row {
+    dataset: String,
+    matcher: String,
+    config: String,
+    selection: String,
+    mean_2d: f64,
+    mean_3d: f64,
+    p50: f64,
+    p75: f64,
+    p95: f64,
+    floor_hit: f64,
+    visited_fraction: f64,
+    queries_per_second: f64,
+    queries: usize,
+    failed: usize,
+}
+
+/// Parses a matcher spec into a k-NN configuration (`None` for the tuned names).
+fn parse_spec(spec: &str, default_k: usize) -> anyhow::Result<Option<KnnConfig>> {
+    let (name, settings) = spec.split_once(':').unwrap_or((spec, ""));
+    let mut cfg = match name {
+        "nn" => KnnConfig::nn(),
+        "knn" => KnnConfig::knn(default_k),
+        "wknn" => KnnConfig::wknn(default_k, 1.0),
+        "wknn2" => KnnConfig::wknn(default_k, 2.0),
+        "tuned-cv" | "tuned-test" => return Ok(None),
+        other => bail!(
+            "unknown matcher {other:?}; available: nn, knn, wknn, wknn2 (optionally NAME:k=..,metric=..,rep=..,w=..), tuned-cv, tuned-test"
+        ),
+    };
+    for kv in settings.split(',').filter(|s| !s.is_empty()) {
+        let (key, value) = kv
+            .split_once('=')
+            .with_context(|| format!("matcher setting {kv:?} is not key=value"))?;
+        match key {
+            "k" => cfg.k = value.parse().context("k")?,
+            "metric" => {
+                cfg.metric =
+                    Metric::parse(value).with_context(|| format!("unknown metric {value:?}"))?
+            }
+            "rep" => {
+                cfg.representation = Representation::parse(value)
+                    .with_context(|| format!("unknown representation {value:?}"))?
+            }
+            "w" => {
+                let w: f64 = value.parse().context("w")?;
+                cfg.weighting = if w == 0.0 {
+                    Weighting::Uniform
+                } else {
+                    Weighting::InverseDistance { power: w }
+                };
+            }
+            other => bail!("unknown matcher setting {other:?} (k, metric, rep, w)"),
+        }
+    }
+    Ok(Some(cfg))
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`wipdr fingerprint-eval` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let filter = QueryFilter {
+        min_rssi_dbm: args.min_rssi,
+        ..Default::default()
+    };
+    // Validate every spec before any work.
+    for spec in &args.matcher {
+        parse_spec(spec, args.k)?;
+    }
+    let mut rows: Vec<Row> = Vec::new();
+    let bar = crate::progress::bar(
+        (args.dataset.len() * args.matcher.len()) as u64,
+        "fingerprint-eval",
+    );
+    for dir in &args.dataset {
+        let name = dir
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| dir.display().to_string());
+        let (train, test) = read_dataset(dir)?;
+        let map = Arc::new(RadioMap::from_table(
+            &train,
+            RadioMapConfig {
+                not_heard_dbm: args.not_heard,
+            },
+        )?);
+        let mut queries = Vec::with_capacity(test.n_rows());
+        let mut truth = Vec::with_capacity(test.n_rows());
+        let mut skipped = 0usize;
+        for (i, label) in test.labels.iter().enumerate() {
+            match Query::from_row(test.row(i), &map, &filter) {
+                Ok(q) => {
+                    queries.push(q);
+                    truth.push(Truth {
+                        position: wipdr_core::Point2::new(label.x, label.y),
+                        floor: Some(label.floor),
+                    });
+                }
+                Err(e) => {
+                    skipped += 1;
+                    tracing::warn!(dataset = %name, row = i + 2, "test row skipped: {e}");
+                }
+            }
+        }
+        if skipped > 0 {
+            eprintln!("{name}: {skipped} test rows without usable APs skipped");
+        }
+        for spec in &args.matcher {
+            let (cfg, selection) = match parse_spec(spec, args.k)? {
+                Some(cfg) => (cfg, "fixed".to_string()),
+                None => {
+                    let grid = Grid {
+                        k_max: args.tune_k_max,
+                        ..Grid::default()
+                    };
+                    let points = if spec == "tuned-cv" {
+                        benchmark::grid_cross_validated(
+                            &map,
+                            &grid,
+                            args.folds,
+                            args.tune_max_queries,
+                        )?
+                    } else {
+                        benchmark::grid_on_test(&map, &queries, &truth, &grid)?
+                    };
+                    let best = benchmark::best(&points).context("empty tuning grid")?;
+                    let how = if spec == "tuned-cv" {
+                        format!(
+                            "{}-fold CV on train.csv (cv mean_3d {:.2})",
+                            args.folds, best.mean_3d
+                        )
+                    } else {
+                        "chosen on test.csv (optimistic)".to_string()
+                    };
+                    (best.config, how)
+                }
+            };
+            let matcher = KnnMatcher::new(map.clone(), cfg)?;
+            let (score, qps) = if args.gemm {
+                let start = std::time::Instant::now();
+                let results = matcher.locate_batch_gemm(&queries);
+                let secs = start.elapsed().as_secs_f64();
+                (
+                    benchmark::score(&results, &truth, map.len()),
+                    queries.len() as f64 / secs.max(1e-12),
+                )
+            } else {
+                benchmark::evaluate(&matcher, &queries, &truth)
+            };
+            rows.push(Row {
+                dataset: name.clone(),
+                matcher: spec.clone(),
+                config: matcher.name(),
+                selection,
+                mean_2d: score.error_2d.mean,
+                mean_3d: score.mean_3d,
+                p50: score.error_2d.p50,
+                p75: score.error_2d.p75,
+                p95: score.error_2d.p95,
+                floor_hit: score.floor_hit,
+                visited_fraction: score.visited_fraction,
+                queries_per_second: qps,
+                queries: queries.len(),
+                failed: score.failed,
+            });
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    println!(
+        "{:<8} {:<12} {:>8} {:>8} {:>7} {:>7} {:>7} {:>6} {:>7} {:>10}  config",
+        "dataset", "matcher", "mean2d", "mean3d", "p50", "p75", "p95", "floor", "visited", "q/s"
+    );
+    for r in &rows {
+        println!(
+            "{:<8} {:<12} {:>8.2} {:>8.2} {:>7.2} {:>7.2} {:>7.2} {:>6.3} {:>7.3} {:>10.0}  {}{}",
+            r.dataset,
+            r.matcher.split(':').next().unwrap_or(""),
+            r.mean_2d,
+            r.mean_3d,
+            r.p50,
+            r.p75,
+            r.p95,
+            r.floor_hit,
+            r.visited_fraction,
+            r.queries_per_second,
+            r.config,
+            if r.selection == "fixed" {
+                String::new()
+            } else {
+                format!(" [{}]", r.selection)
+            }
+        );
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "results": rows }))?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_parse() {
+        let c = parse_spec("wknn:k=13,metric=sorensen,rep=powed,w=2", 5)
+            .unwrap()
+            .unwrap();
+        assert_eq!(c.k, 13);
+        assert_eq!(c.metric, Metric::Sorensen);
+        assert_eq!(c.weighting, Weighting::InverseDistance { power: 2.0 });
+        assert_eq!(parse_spec("nn", 5).unwrap().unwrap().k, 1);
+        assert!(parse_spec("tuned-cv", 5).unwrap().is_none());
+        assert!(parse_spec("bogus", 5).is_err());
+        assert!(parse_spec("knn:metric=nope", 5).is_err());
+        assert!(parse_spec("knn:k", 5).is_err());
+    }
 }

@@ -1,10 +1,264 @@
-//! `wipdr inspect` (not implemented yet).
+//! `wipdr inspect PATH...`: summarise walk files or floor folders with their parse reports.
+
+use anyhow::Context;
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use wipdr_core::imu::mean_rate_hz;
+use wipdr_core::{Bssid, Walk};
+use wipdr_io::cache::{self, CacheOutcome};
+use wipdr_io::floor::{FloorData, ReadOptions};
+use wipdr_io::trace::{self, ParseReport, ParsedWalk};
 
 /// Arguments of `wipdr inspect`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Walk files (`.txt`, `.txt.gz`) or floor folders (with `floor_info.json`,
+    /// `geojson_map.json` and `path_data_files/`).
+    #[arg(required = true)]
+    pub paths: Vec<PathBuf>,
+    /// Read floors from source, bypassing (and not writing) the binary cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Cache folder for parsed floors.
+    #[arg(long, default_value = cache::DEFAULT_CACHE_DIR)]
+    pub cache_dir: PathBuf,
+    /// Only the floor summary, not one line per walk.
+    #[arg(long)]
+    pub brief: bool,
+    /// Resource limits as a TOML file (fields of `wipdr_io::Limits`; missing ones default).
+    #[arg(long)]
+    pub limits: Option<PathBuf>,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`wipdr inspect` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut options = ReadOptions::default();
+    if let Some(path) = &args.limits {
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        options.limits = toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    }
+    let started = Instant::now();
+    for path in &args.paths {
+        if path.is_dir() {
+            inspect_floor(path, &args, &options)?;
+        } else {
+            inspect_walk(path, &options)?;
+        }
+    }
+    if args.paths.len() > 1 {
+        println!("all {} paths in {:.2} s", args.paths.len(), started.elapsed().as_secs_f64());
+    }
+    Ok(())
+}
+
+fn inspect_walk(path: &Path, options: &ReadOptions) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let parsed = trace::read_walk_with(path, &options.limits)?;
+    let elapsed = t0.elapsed().as_secs_f64();
+    let w = &parsed.walk;
+    println!("walk {} ({}), read in {elapsed:.3} s", w.meta.id, path.display());
+    let meta = &w.meta;
+    let opt = |v: &Option<String>| v.clone().unwrap_or_else(|| "-".into());
+    println!(
+        "  site {} / floor {}   phone {} {} (Android {})",
+        opt(&meta.site_name),
+        opt(&meta.floor_name),
+        opt(&meta.brand),
+        opt(&meta.model),
+        opt(&meta.android)
+    );
+    print_walk_table(std::slice::from_ref(&parsed));
+    print_report(&parsed.report, true);
+    Ok(())
+}
+
+fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Result<()> {
+    let n_files = wipdr_io::floor::walk_files(dir)?.len();
+    let bar = crate::progress::bar(n_files as u64, "walks");
+    let on_walk = || bar.inc(1);
+    let t0 = Instant::now();
+    let (floor, outcome): (FloorData, Option<CacheOutcome>) = if args.no_cache {
+        let f = wipdr_io::floor::read_floor_dir_with_progress(dir, options, &on_walk)?;
+        (f, None)
+    } else {
+        let (f, o) = cache::read_floor_dir_cached_with(dir, &args.cache_dir, options, &on_walk)?;
+        (f, Some(o))
+    };
+    let elapsed = t0.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let how = match outcome {
+        None => "from source, cache off".to_string(),
+        Some(CacheOutcome::Hit) => format!("from the cache in {}", args.cache_dir.display()),
+        Some(CacheOutcome::Miss) => format!("from source, cached in {}", args.cache_dir.display()),
+        Some(CacheOutcome::MissNotStored) => "from source, cache not written".to_string(),
+    };
+    println!("floor {} ({})", floor.name, floor.dir.display());
+    println!("  read in {elapsed:.3} s ({how})");
+    println!(
+        "  {:.1} x {:.1} m, outline {} polygon(s), {} units, {} walls, {} GeoJSON features skipped",
+        floor.width,
+        floor.height,
+        floor.plan.outline.len(),
+        floor.plan.units.len(),
+        floor.plan.walls.len(),
+        floor.skipped_features
+    );
+    if !args.brief {
+        print_walk_table(&floor.walks);
+    }
+    let walks: Vec<&Walk> = floor.walks.iter().map(|p| &p.walk).collect();
+    let durations: Vec<f64> = walks.iter().map(|w| w.duration_s()).collect();
+    let total: f64 = durations.iter().sum();
+    let (min, max) = durations
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(*d), hi.max(*d)));
+    let waypoints: usize = walks.iter().map(|w| w.waypoints.len()).sum();
+    let inside: usize = walks
+        .iter()
+        .flat_map(|w| &w.waypoints)
+        .filter(|p| floor.plan.inside_outline(p.position))
+        .count();
+    let scans: usize = walks.iter().map(|w| w.wifi.len()).sum();
+    let aps: HashSet<Bssid> = walks
+        .iter()
+        .flat_map(|w| w.wifi.iter().flat_map(|s| s.entries.iter().map(|e| e.bssid)))
+        .collect();
+    println!(
+        "  {} walks, total {:.1} min (each {:.1}-{:.1} s, mean {:.1} s)",
+        walks.len(),
+        total / 60.0,
+        if walks.is_empty() { 0.0 } else { min },
+        max,
+        if walks.is_empty() { 0.0 } else { total / walks.len() as f64 }
+    );
+    println!(
+        "  {waypoints} waypoints ({} inside the outline), {scans} Wi-Fi scans, {} distinct APs",
+        if waypoints == 0 {
+            "-".to_string()
+        } else {
+            format!("{:.1} %", 100.0 * inside as f64 / waypoints as f64)
+        },
+        aps.len()
+    );
+    let rates = mean_rates(&walks);
+    println!(
+        "  mean rates (Hz): accelerometer {}, gyroscope {}, magnetometer {}, rotation vector {}, Wi-Fi scans {}",
+        fmt_rate(rates[0]),
+        fmt_rate(rates[1]),
+        fmt_rate(rates[2]),
+        fmt_rate(rates[3]),
+        fmt_rate(rates[4])
+    );
+    let report = floor.total_report();
+    print_report(&report, false);
+    // Where to look: the first walks with skips of each kind.
+    let mut shown = HashSet::new();
+    for p in &floor.walks {
+        for (kind, s) in &p.report.skipped {
+            if *kind != trace::SkipKind::UnknownType && shown.insert(*kind) {
+                println!(
+                    "    first {}: walk {} lines {:?}",
+                    kind.label(),
+                    p.walk.meta.id,
+                    s.first_lines
+                );
+            }
+        }
+    }
+    println!();
+    Ok(())
+}
+
+fn fmt_rate(r: Option<f64>) -> String {
+    r.map_or("-".into(), |r| format!("{r:.1}"))
+}
+
+/// Mean over walks of each stream's rate: accelerometer, gyroscope, magnetometer, rotation
+/// vector, Wi-Fi scans.
+fn mean_rates(walks: &[&Walk]) -> [Option<f64>; 5] {
+    let mut out = [None; 5];
+    for (i, slot) in out.iter_mut().enumerate() {
+        let rates: Vec<f64> = walks.iter().filter_map(|w| walk_rates(w)[i]).collect();
+        if !rates.is_empty() {
+            *slot = Some(rates.iter().sum::<f64>() / rates.len() as f64);
+        }
+    }
+    out
+}
+
+fn walk_rates(w: &Walk) -> [Option<f64>; 5] {
+    let imu = &w.imu;
+    [
+        mean_rate_hz(imu.accelerometer.iter().map(|s| s.t)),
+        mean_rate_hz(imu.gyroscope.iter().map(|s| s.t)),
+        mean_rate_hz(imu.magnetometer.iter().map(|s| s.t)),
+        mean_rate_hz(imu.rotation_vector.iter().map(|s| s.t)),
+        mean_rate_hz(w.wifi.iter().map(|s| s.t)),
+    ]
+}
+
+fn print_walk_table(walks: &[ParsedWalk]) {
+    println!(
+        "  {:<26} {:>7} {:>5} {:>6} {:>5} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8}",
+        "walk", "dur s", "wpts", "scans", "APs", "acc Hz", "gyr Hz", "mag Hz", "rot Hz", "kept", "skipped"
+    );
+    for p in walks {
+        let w = &p.walk;
+        let aps: HashSet<Bssid> = w
+            .wifi
+            .iter()
+            .flat_map(|s| s.entries.iter().map(|e| e.bssid))
+            .collect();
+        let r = walk_rates(w);
+        println!(
+            "  {:<26} {:>7.1} {:>5} {:>6} {:>5} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8}",
+            w.meta.id,
+            w.duration_s(),
+            w.waypoints.len(),
+            w.wifi.len(),
+            aps.len(),
+            fmt_rate(r[0]),
+            fmt_rate(r[1]),
+            fmt_rate(r[2]),
+            fmt_rate(r[3]),
+            p.report.records_kept(),
+            p.report.records_skipped()
+        );
+    }
+}
+
+fn print_report(r: &ParseReport, with_lines: bool) {
+    println!(
+        "  parse report: {} lines, {} headers, {} records kept, {} skipped",
+        r.lines,
+        r.header_lines,
+        r.records_kept(),
+        r.records_skipped()
+    );
+    let kept: Vec<String> = r.records.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    println!("    kept by type: {}", kept.join(", "));
+    for (kind, s) in &r.skipped {
+        if with_lines {
+            println!("    skipped {}: {} (first lines {:?})", kind.label(), s.count, s.first_lines);
+        } else {
+            println!("    skipped {}: {}", kind.label(), s.count);
+        }
+    }
+    if !r.unknown_types.is_empty() {
+        let unknown: Vec<String> = r.unknown_types.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        println!("    unknown types: {}", unknown.join(", "));
+    }
+    println!(
+        "    duplicate BSSIDs removed {}, run-on lines split {}{}, out-of-order records {} (latest by {:.1} s)",
+        r.duplicate_bssids_removed,
+        r.run_on_lines_split,
+        if with_lines && !r.run_on_first_lines.is_empty() {
+            format!(" (lines {:?})", r.run_on_first_lines)
+        } else {
+            String::new()
+        },
+        r.out_of_order,
+        r.max_lateness_ms as f64 / 1000.0
+    );
 }

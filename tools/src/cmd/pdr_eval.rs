@@ -1,10 +1,506 @@
-//! `wipdr pdr-eval` (not implemented yet).
+//! `wipdr pdr-eval`: PDR on recorded walks under the protocol folds
+//! (`../shared/docs/evaluation.md`).
+//!
+//! For each floor and fold, the step-length coefficients (every model) and the heading
+//! offset (every source) are fitted on the training walks' waypoint legs
+//! ([`wipdr_pdr::calibrate`]); the test walks are then scored:
+//! (a) per leg, the relative error of the summed step lengths and the heading error of the
+//! PDR displacement against the leg; (b) PDR-only positions started at the true first
+//! waypoint, scored at every later waypoint after the walk's first Wi-Fi scan. Reported for
+//! the competition sample code's PDR (baseline), the sample code with a per-floor stride
+//! scale, the configured pipeline (`--config`, default [`PdrConfig::default`]), and every
+//! step-length model x heading source.
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use wipdr_core::stats::{ErrorStats, folds_by_name};
+use wipdr_core::{TimestampMs, Waypoint};
+use wipdr_io::floor::{FloorData, ReadOptions};
+use wipdr_pdr::calibrate::{
+    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_step_length,
+    leg_errors, track,
+};
+use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
 
 /// Arguments of `wipdr pdr-eval`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Floor folders (ILC layout: `path_data_files/`, `floor_info.json`, `geojson_map.json`).
+    #[arg(long = "data", required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    /// PDR configuration (JSON or TOML) of the proposed pipeline; its step-length
+    /// coefficients and heading offset are re-fitted on each fold's training walks.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Calibration settings (JSON or TOML).
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Write the results as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Draw PDR against truth for some walks of each floor into this folder (SVG).
+    #[arg(long)]
+    pub plot_dir: Option<PathBuf>,
+    /// How many walks per floor to plot (the first by name).
+    #[arg(long, default_value_t = 2)]
+    pub plot_walks: usize,
+    /// Cache folder for parsed floors.
+    #[arg(long, default_value = wipdr_io::cache::DEFAULT_CACHE_DIR)]
+    pub cache_dir: PathBuf,
+    /// Read the walks from source, bypassing the cache.
+    #[arg(long)]
+    pub no_cache: bool,
+}
+
+/// Reads a config file as JSON (`.json`) or TOML (anything else).
+pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    if path.extension().is_some_and(|e| e == "json") {
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    } else {
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    }
+}
+
+/// Reads floor folders (through the cache unless disabled).
+pub(crate) fn read_floors(dirs: &[PathBuf], cache_dir: &Path, no_cache: bool) -> Result<Vec<FloorData>> {
+    let opts = ReadOptions::default();
+    dirs.iter()
+        .map(|d| {
+            let f = if no_cache {
+                wipdr_io::floor::read_floor_dir(d, &opts)
+            } else {
+                wipdr_io::cache::read_floor_dir_cached(d, cache_dir, &opts)
+            };
+            f.with_context(|| format!("reading floor {}", d.display()))
+        })
+        .collect()
+}
+
+/// One walk run through the pipeline.
+pub(crate) struct WalkRun {
+    /// Walk id.
+    pub id: String,
+    /// Protocol fold.
+    pub fold: usize,
+    /// Steps under the given configuration.
+    pub steps: Vec<StepDetail>,
+    /// Waypoints.
+    pub waypoints: Vec<Waypoint>,
+    /// First Wi-Fi scan time.
+    pub first_wifi: Option<TimestampMs>,
+}
+
+/// Runs `cfg` over every walk of a floor (parallel), with folds.
+pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
+    let ids: Vec<&str> = floor.walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+    let folds = folds_by_name(&ids);
+    floor
+        .walks
+        .par_iter()
+        .zip(folds)
+        .map(|(pw, fold)| {
+            let (steps, diag) = Pdr::run_detailed(*cfg, &pw.walk);
+            if diag != Default::default() {
+                tracing::debug!(walk = %pw.walk.meta.id, ?diag, "PDR input diagnostics");
+            }
+            WalkRun {
+                id: pw.walk.meta.id.clone(),
+                fold,
+                steps,
+                waypoints: pw.walk.waypoints.clone(),
+                first_wifi: pw.walk.wifi.first().map(|s| s.t),
+            }
+        })
+        .collect()
+}
+
+fn walk_steps(runs: &[WalkRun], keep: impl Fn(&WalkRun) -> bool) -> Vec<WalkSteps<'_>> {
+    runs.iter()
+        .filter(|r| keep(r))
+        .map(|r| WalkSteps { steps: &r.steps, waypoints: &r.waypoints })
+        .collect()
+}
+
+/// Calibrates `model` and the heading offset of `source` on `train`.
+pub(crate) fn calibrate(
+    model: StepLengthConfig,
+    source: HeadingSource,
+    fit_offset: bool,
+    train: &[WalkSteps<'_>],
+    cal: &CalibrationConfig,
+) -> (StepLengthConfig, f64) {
+    let cal = CalibrationConfig { heading_source: source, ..*cal };
+    let fitted = fit_step_length(model, train, &cal);
+    let offset = if fit_offset {
+        fit_heading_offset(&fitted, source, train, &cal).unwrap_or(0.0)
+    } else {
+        0.0
+    };
+    // Re-fit lengths with the offset applied (the displacement objective sees headings).
+    if offset != 0.0 && cal.objective == wipdr_pdr::calibrate::FitObjective::Displacement {
+        let shifted: Vec<Vec<StepDetail>> = train
+            .iter()
+            .map(|w| w.steps.iter().map(|s| shift_heading(s, source, offset)).collect())
+            .collect();
+        let train2: Vec<WalkSteps<'_>> = shifted
+            .iter()
+            .zip(train)
+            .map(|(s, w)| WalkSteps { steps: s, waypoints: w.waypoints })
+            .collect();
+        return (fit_step_length(model, &train2, &cal), offset);
+    }
+    (fitted, offset)
+}
+
+fn shift_heading(s: &StepDetail, source: HeadingSource, offset: f64) -> StepDetail {
+    let mut s = *s;
+    let h = &mut s.headings;
+    let slot = match source {
+        HeadingSource::RotationVector => &mut h.rotation_vector,
+        HeadingSource::Gyro => &mut h.gyro,
+        HeadingSource::GyroCompassKf => &mut h.gyro_compass_kf,
+        HeadingSource::Compass => &mut h.compass,
+    };
+    if let Some(v) = slot.as_mut() {
+        *v = wipdr_core::angle::wrap_pi(*v + offset);
+    }
+    s
+}
+
+/// Errors collected for one scheme.
+#[derive(Default, Clone)]
+struct Collected {
+    positions: Vec<f64>,
+    leg_length_rel: Vec<f64>,
+    leg_heading_deg: Vec<f64>,
+    offsets_deg: Vec<f64>,
+}
+
+impl Collected {
+    fn extend(&mut self, o: &Collected) {
+        self.positions.extend(&o.positions);
+        self.leg_length_rel.extend(&o.leg_length_rel);
+        self.leg_heading_deg.extend(&o.leg_heading_deg);
+        self.offsets_deg.extend(&o.offsets_deg);
+    }
+}
+
+/// A scheme to score: how its model and offset are obtained.
+#[derive(Clone, Copy)]
+struct Scheme {
+    name: &'static str,
+    model: StepLengthConfig,
+    source: HeadingSource,
+    fit_length: bool,
+    fit_offset: bool,
+    /// Whether it runs on the sample-code run (heading at step time) or the configured one.
+    on_baseline_run: bool,
+}
+
+fn score_floor(
+    base_runs: &[WalkRun],
+    runs: &[WalkRun],
+    schemes: &[Scheme],
+    cfg: &PdrConfig,
+    cal: &CalibrationConfig,
+) -> Vec<(Collected, Vec<Vec<(TimestampMs, f64, f64)>>)> {
+    schemes
+        .par_iter()
+        .map(|sc| {
+            let runs = if sc.on_baseline_run { base_runs } else { runs };
+            let (min_len, max_len) = if sc.on_baseline_run {
+                (0.0, 10.0)
+            } else {
+                (cfg.min_step_length, cfg.max_step_length)
+            };
+            let mut col = Collected::default();
+            let mut tracks = vec![Vec::new(); runs.len()];
+            for fold in 0..wipdr_core::stats::FOLDS {
+                let train = walk_steps(runs, |r| r.fold != fold);
+                let (model, offset) = if sc.fit_length || sc.fit_offset {
+                    let model = if sc.fit_length {
+                        calibrate(sc.model, sc.source, sc.fit_offset, &train, cal)
+                    } else {
+                        let c = CalibrationConfig { heading_source: sc.source, ..*cal };
+                        (sc.model, fit_heading_offset(&sc.model, sc.source, &train, &c).unwrap_or(0.0))
+                    };
+                    model
+                } else {
+                    (sc.model, 0.0)
+                };
+                col.offsets_deg.push(offset.to_degrees());
+                for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.fold == fold) {
+                    let shifted: Vec<StepDetail> =
+                        r.steps.iter().map(|s| shift_heading(s, sc.source, offset)).collect();
+                    let ws = WalkSteps { steps: &shifted, waypoints: &r.waypoints };
+                    for e in leg_errors(&ws, &model, sc.source, cal) {
+                        col.leg_length_rel.push(e.length_rel);
+                        col.leg_heading_deg.push(e.heading.to_degrees());
+                    }
+                    let tr = track(&r.steps, &model, sc.source, offset, min_len, max_len);
+                    col.positions.extend(
+                        dead_reckon_at_waypoints(&tr, &r.waypoints, r.first_wifi).iter().map(|s| s.error),
+                    );
+                    tracks[i] = tr;
+                }
+            }
+            (col, tracks)
+        })
+        .collect()
+}
+
+/// Median and p90 of absolute values.
+#[derive(Debug, Clone, Copy, Serialize)]
+struct AbsSummary {
+    count: usize,
+    median: f64,
+    p90: f64,
+    mean_signed: f64,
+}
+
+fn abs_summary(v: &[f64]) -> AbsSummary {
+    let a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+    let s = ErrorStats::from_errors(&a);
+    let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    let mean_signed = if finite.is_empty() { 0.0 } else { finite.iter().sum::<f64>() / finite.len() as f64 };
+    AbsSummary { count: s.count, median: s.p50, p90: s.p90, mean_signed }
+}
+
+/// The position figures of a scheme, as the JSON holds them.
+#[derive(Debug, Clone, Serialize)]
+struct SchemeReport {
+    pooled: ErrorStats,
+    floors: BTreeMap<String, ErrorStats>,
+    leg_length_rel: AbsSummary,
+    leg_heading_deg: AbsSummary,
+    heading_offsets_deg: Vec<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    /// The configured pipeline's PDR-only positions (protocol scoring).
+    pooled: ErrorStats,
+    /// Per floor, the same.
+    floors: BTreeMap<String, ErrorStats>,
+    /// The configuration (before per-fold calibration).
+    config: PdrConfig,
+    /// Every scheme.
+    schemes: BTreeMap<String, SchemeReport>,
+    /// Steps detected per floor (configured pipeline) and walks.
+    steps: BTreeMap<String, (usize, usize)>,
+}
+
+fn fmt_stats(s: &ErrorStats) -> String {
+    format!("{:>5} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>7.2}", s.count, s.mean, s.rms, s.p50, s.p75, s.p95, s.max)
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`wipdr pdr-eval` is not implemented yet")
+pub fn run(args: Args) -> Result<()> {
+    let cfg: PdrConfig = match &args.config {
+        Some(p) => read_config(p)?,
+        None => PdrConfig::default(),
+    };
+    let cal: CalibrationConfig = match &args.calibration {
+        Some(p) => read_config(p)?,
+        None => CalibrationConfig::default(),
+    };
+    let floors = read_floors(&args.data, &args.cache_dir, args.no_cache)?;
+    let base_cfg = PdrConfig::sample_code();
+
+    let mut schemes = vec![
+        Scheme {
+            name: "sample_code",
+            model: base_cfg.step_length,
+            source: HeadingSource::RotationVector,
+            fit_length: false,
+            fit_offset: false,
+            on_baseline_run: true,
+        },
+        Scheme {
+            name: "sample_code+scale",
+            model: base_cfg.step_length,
+            source: HeadingSource::RotationVector,
+            fit_length: true,
+            fit_offset: false,
+            on_baseline_run: true,
+        },
+        Scheme {
+            name: "configured",
+            model: cfg.step_length,
+            source: cfg.heading.source,
+            fit_length: true,
+            fit_offset: cal.fit_heading_offset,
+            on_baseline_run: false,
+        },
+    ];
+    let names: Vec<String> = StepLengthConfig::all_defaults()
+        .iter()
+        .flat_map(|m| HeadingSource::ALL.iter().map(move |s| format!("{}/{}", m.name(), s.name())))
+        .collect();
+    let leaked: &'static [String] = Box::leak(names.into_boxed_slice());
+    let mut k = 0;
+    for m in StepLengthConfig::all_defaults() {
+        for s in HeadingSource::ALL {
+            schemes.push(Scheme {
+                name: leaked[k].as_str(),
+                model: m,
+                source: s,
+                fit_length: true,
+                fit_offset: cal.fit_heading_offset,
+                on_baseline_run: false,
+            });
+            k += 1;
+        }
+    }
+
+    let mut per_scheme: Vec<(Collected, BTreeMap<String, ErrorStats>)> =
+        vec![(Collected::default(), BTreeMap::new()); schemes.len()];
+    let mut steps_info = BTreeMap::new();
+    let pb = crate::progress::bar(floors.len() as u64, "floors");
+    for floor in &floors {
+        let base_runs = run_floor(floor, &base_cfg);
+        let runs = run_floor(floor, &cfg);
+        steps_info.insert(floor.name.clone(), (runs.iter().map(|r| r.steps.len()).sum(), runs.len()));
+        let scored = score_floor(&base_runs, &runs, &schemes, &cfg, &cal);
+        for (i, (col, tracks)) in scored.iter().enumerate() {
+            per_scheme[i].0.extend(col);
+            per_scheme[i].1.insert(floor.name.clone(), ErrorStats::from_errors(&col.positions));
+            if let Some(dir) = &args.plot_dir
+                && schemes[i].name == "configured"
+            {
+                let base_tracks = &scored[0].1;
+                plot_walks(dir, floor, &runs, tracks, base_tracks, args.plot_walks)?;
+            }
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+
+    let mut reports = BTreeMap::new();
+    for (sc, (col, floors_stats)) in schemes.iter().zip(&per_scheme) {
+        reports.insert(
+            sc.name.to_string(),
+            SchemeReport {
+                pooled: ErrorStats::from_errors(&col.positions),
+                floors: floors_stats.clone(),
+                leg_length_rel: abs_summary(&col.leg_length_rel),
+                leg_heading_deg: abs_summary(&col.leg_heading_deg),
+                heading_offsets_deg: col.offsets_deg.clone(),
+            },
+        );
+    }
+
+    // Text report.
+    println!("PDR-only from the true first waypoint, scored after the first Wi-Fi scan (m)");
+    println!("{:<22} {:<10} {:>5} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7}", "scheme", "floor", "n", "mean", "rms", "p50", "p75", "p95", "max");
+    for name in ["sample_code", "sample_code+scale", "configured"] {
+        let r = &reports[name];
+        for (f, s) in &r.floors {
+            println!("{:<22} {:<10} {}", name, f, fmt_stats(s));
+        }
+        println!("{:<22} {:<10} {}", name, "pooled", fmt_stats(&r.pooled));
+    }
+    println!();
+    println!("Every model x heading source (fitted per fold), pooled; legs: |relative length error| and |heading error|");
+    println!(
+        "{:<34} {:>6} {:>6} {:>6} | {:>6} {:>6} | {:>6} {:>6} | {:>6}",
+        "model/source", "mean", "p50", "p95", "len50%", "len90%", "hdg50", "hdg90", "offset"
+    );
+    for name in std::iter::once("sample_code+scale").chain(leaked.iter().map(|s| s.as_str())) {
+        let r = &reports[name];
+        let mean_off = if r.heading_offsets_deg.is_empty() {
+            0.0
+        } else {
+            r.heading_offsets_deg.iter().sum::<f64>() / r.heading_offsets_deg.len() as f64
+        };
+        println!(
+            "{:<34} {:>6.2} {:>6.2} {:>6.2} | {:>6.1} {:>6.1} | {:>6.1} {:>6.1} | {:>6.1}",
+            name,
+            r.pooled.mean,
+            r.pooled.p50,
+            r.pooled.p95,
+            100.0 * r.leg_length_rel.median,
+            100.0 * r.leg_length_rel.p90,
+            r.leg_heading_deg.median,
+            r.leg_heading_deg.p90,
+            mean_off
+        );
+    }
+    for (f, (n, w)) in &steps_info {
+        println!("{f}: {n} steps in {w} walks");
+    }
+
+    if let Some(path) = &args.json {
+        let configured = &reports["configured"];
+        let report = Report {
+            pooled: configured.pooled,
+            floors: configured.floors.clone(),
+            config: cfg,
+            schemes: reports.clone(),
+            steps: steps_info,
+        };
+        crate::plotting::ensure_parent(path)?;
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn positions_of(tr: &[(TimestampMs, f64, f64)], waypoints: &[Waypoint]) -> Vec<(f64, f64)> {
+    let Some(first) = waypoints.first() else { return Vec::new() };
+    let mut p = first.position;
+    let mut out = vec![(p.x, p.y)];
+    for &(t, l, h) in tr {
+        if t <= first.t {
+            continue;
+        }
+        p += wipdr_core::angle::step_displacement(l, h);
+        out.push((p.x, p.y));
+    }
+    out
+}
+
+fn plot_walks(
+    dir: &Path,
+    floor: &FloorData,
+    runs: &[WalkRun],
+    tracks: &[Vec<(TimestampMs, f64, f64)>],
+    base_tracks: &[Vec<(TimestampMs, f64, f64)>],
+    n: usize,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by(|&a, &b| runs[a].id.cmp(&runs[b].id));
+    for &i in order.iter().take(n) {
+        let r = &runs[i];
+        let file = dir.join(format!("{}_{}.svg", floor.name.replace('/', "_"), r.id));
+        let (w, h) = crate::plotting::floor_canvas_size(floor.plan.width, floor.plan.height, 900);
+        let root = SVGBackend::new(&file, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut chart = crate::plotting::floor_chart(
+            &root,
+            &floor.plan,
+            &format!("{} {}: truth (black), sample code (red), configured (blue)", floor.name, r.id),
+        )?;
+        crate::plotting::draw_floor_plan(&mut chart, &floor.plan)?;
+        let truth: Vec<(f64, f64)> = r.waypoints.iter().map(|w| (w.position.x, w.position.y)).collect();
+        let err = |e| anyhow::anyhow!("plot: {e}");
+        chart.draw_series(LineSeries::new(truth.clone(), BLACK.stroke_width(2))).map_err(err)?;
+        chart
+            .draw_series(truth.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
+            .map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(positions_of(&base_tracks[i], &r.waypoints), RED.stroke_width(2)))
+            .map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(positions_of(&tracks[i], &r.waypoints), BLUE.stroke_width(2)))
+            .map_err(err)?;
+        root.present().map_err(|e| anyhow::anyhow!("writing {}: {e}", file.display()))?;
+    }
+    Ok(())
 }

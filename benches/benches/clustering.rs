@@ -1,0 +1,69 @@
+//! Affinity propagation (paper 001 §2.2) on the side-by-side matrices of
+//! `benches/peers/affinity_speed.py`: the first N = 2,000 and 3,951 rows of TUT3's `test.csv`,
+//! signal similarity (negative squared Euclidean, not heard = -110 dBm), median preference,
+//! damping 0.9, max_iter 200, convergence_iter 15; `f32` and `f64` storage. The similarity
+//! matrix is built once outside the timed loop, as scikit-learn's `fit` receives it.
+//!
+//! `cargo bench -p wipdr-benches --bench clustering`. Skips (with a message) when
+//! `../shared/data` is absent.
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::PathBuf;
+use wipdr_core::Point2;
+use wipdr_fingerprint::affinity::{
+    AffinityConfig, Preference, SimilarityMatrix, affinity_propagation,
+};
+use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
+use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_fingerprint_csv};
+
+fn data_dir() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/fingerprint"))
+}
+
+fn tut3_similarity(rows: usize) -> Option<SimilarityMatrix<f32>> {
+    let path = data_dir().join("TUT3/test.csv");
+    if !path.exists() {
+        eprintln!("skipping: {} not found", path.display());
+        return None;
+    }
+    let table = read_fingerprint_csv(&path).ok()?;
+    let n = rows.min(table.n_rows());
+    let m = table.n_aps();
+    let rss: Vec<f32> = table.rss[..n * m]
+        .iter()
+        .map(|&v| if v == NOT_DETECTED { -110.0 } else { v })
+        .collect();
+    let pos: Vec<Point2> = table.labels[..n].iter().map(|l| Point2::new(l.x, l.y)).collect();
+    let fp = Fingerprints::new(&rss, m, &pos, -110.0).ok()?;
+    Some(signal_similarity(&fp))
+}
+
+fn bench_affinity(c: &mut Criterion) {
+    let config = AffinityConfig {
+        preference: Preference::GlobalMedian,
+        ..AffinityConfig::default()
+    };
+    let mut group = c.benchmark_group("affinity_propagation_tut3");
+    group.sample_size(10);
+    for n in [2000usize, 3951] {
+        let Some(s32) = tut3_similarity(n) else {
+            return;
+        };
+        let s64 = SimilarityMatrix::new(
+            s32.len(),
+            s32.as_slice().iter().map(|&v| f64::from(v)).collect(),
+        )
+        .unwrap();
+        group.bench_with_input(BenchmarkId::new("f32", n), &s32, |b, s| {
+            b.iter(|| black_box(affinity_propagation(black_box(s), &config).unwrap()))
+        });
+        group.bench_with_input(BenchmarkId::new("f64", n), &s64, |b, s| {
+            b.iter(|| black_box(affinity_propagation(black_box(s), &config).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_affinity);
+criterion_main!(benches);

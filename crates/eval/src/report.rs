@@ -1,0 +1,190 @@
+//! Figures of an evaluation: per walk, per floor and pooled, per scheme, and their JSON form.
+//!
+//! JSON schema (written by `wipdr eval --json`):
+//!
+//! ```text
+//! {
+//!   "pooled": { "<scheme>": Summary, ... },
+//!   "floors": { "<floor folder>": { "<scheme>": Summary, ... }, ... },
+//!   "walks":  [ { "floor", "walk", "fold", "scheme", "count", "skipped", "mean", "p95",
+//!                 "max", "errors": [[t_ms, metres], ...] }, ... ],
+//!   "config": { ...the evaluation config used... }
+//! }
+//! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max" }
+//! ```
+
+use crate::scoring::WalkScore;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use wipdr_core::stats::ErrorStats;
+
+/// Summary of one scheme over a set of waypoints.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Summary {
+    /// Scored waypoints.
+    pub count: usize,
+    /// Skipped waypoints (before scoring start or before the scheme's first estimate).
+    pub skipped: usize,
+    /// Mean error, metres.
+    pub mean: f64,
+    /// RMS error, metres.
+    pub rms: f64,
+    /// Median error, metres.
+    pub p50: f64,
+    /// 75th percentile, metres.
+    pub p75: f64,
+    /// 95th percentile, metres.
+    pub p95: f64,
+    /// Maximum error, metres.
+    pub max: f64,
+}
+
+impl Summary {
+    /// Summarises the scores of several walks (pooled over their waypoints).
+    pub fn from_scores<'a>(scores: impl IntoIterator<Item = &'a WalkScore>) -> Self {
+        let mut errors = Vec::new();
+        let mut skipped = 0;
+        for s in scores {
+            errors.extend(s.errors.iter().map(|e| e.1));
+            skipped += s.skipped;
+        }
+        let st = ErrorStats::from_errors(&errors);
+        Self {
+            count: st.count,
+            skipped,
+            mean: st.mean,
+            rms: st.rms,
+            p50: st.p50,
+            p75: st.p75,
+            p95: st.p95,
+            max: st.max,
+        }
+    }
+}
+
+/// The score of one scheme on one test walk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WalkResult {
+    /// Floor label (the folder as given).
+    pub floor: String,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold of the walk.
+    pub fold: usize,
+    /// Scheme name.
+    pub scheme: String,
+    /// The scored waypoints.
+    pub score: WalkScore,
+}
+
+/// A whole evaluation: per-walk results and their per-floor and pooled summaries.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// Per scheme, over all floors.
+    pub pooled: BTreeMap<String, Summary>,
+    /// Per floor, per scheme.
+    pub floors: BTreeMap<String, BTreeMap<String, Summary>>,
+    /// Scheme names in the order requested.
+    pub schemes: Vec<String>,
+    /// Floor labels in the order given.
+    pub floor_order: Vec<String>,
+    /// Every walk result.
+    pub walks: Vec<WalkResult>,
+}
+
+impl EvalReport {
+    /// Builds the summaries from per-walk results.
+    pub fn from_walks(schemes: Vec<String>, floor_order: Vec<String>, walks: Vec<WalkResult>) -> Self {
+        let mut pooled = BTreeMap::new();
+        let mut floors: BTreeMap<String, BTreeMap<String, Summary>> = BTreeMap::new();
+        for s in &schemes {
+            pooled.insert(
+                s.clone(),
+                Summary::from_scores(walks.iter().filter(|w| &w.scheme == s).map(|w| &w.score)),
+            );
+            for f in &floor_order {
+                floors.entry(f.clone()).or_default().insert(
+                    s.clone(),
+                    Summary::from_scores(
+                        walks
+                            .iter()
+                            .filter(|w| &w.scheme == s && &w.floor == f)
+                            .map(|w| &w.score),
+                    ),
+                );
+            }
+        }
+        Self {
+            pooled,
+            floors,
+            schemes,
+            floor_order,
+            walks,
+        }
+    }
+
+    /// A plain-text table: one block per floor and one pooled, a row per scheme.
+    pub fn table(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::new();
+        let mut block = |title: &str, rows: &BTreeMap<String, Summary>| {
+            let _ = writeln!(out, "{title}");
+            let _ = writeln!(
+                out,
+                "  {:<8} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}",
+                "scheme", "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max"
+            );
+            for s in &self.schemes {
+                if let Some(r) = rows.get(s) {
+                    let _ = writeln!(
+                        out,
+                        "  {:<8} {:>6} {:>7} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>8.2}",
+                        s, r.count, r.skipped, r.mean, r.rms, r.p50, r.p75, r.p95, r.max
+                    );
+                }
+            }
+        };
+        for f in &self.floor_order {
+            if let Some(rows) = self.floors.get(f) {
+                block(f, rows);
+            }
+        }
+        block("pooled", &self.pooled);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(floor: &str, walk: &str, scheme: &str, errs: &[f64]) -> WalkResult {
+        WalkResult {
+            floor: floor.into(),
+            walk: walk.into(),
+            fold: 0,
+            scheme: scheme.into(),
+            score: WalkScore {
+                errors: errs.iter().enumerate().map(|(i, &e)| (i as i64, e)).collect(),
+                skipped: 1,
+            },
+        }
+    }
+
+    #[test]
+    fn pooled_agrees_with_walks() {
+        let walks = vec![
+            result("A", "w1", "ekf", &[1.0, 2.0]),
+            result("B", "w2", "ekf", &[3.0]),
+            result("A", "w1", "pdr", &[5.0]),
+        ];
+        let r = EvalReport::from_walks(vec!["ekf".into(), "pdr".into()], vec!["A".into(), "B".into()], walks);
+        let p = r.pooled["ekf"];
+        assert_eq!(p.count, 3);
+        assert_eq!(p.skipped, 2);
+        assert!((p.mean - 2.0).abs() < 1e-12);
+        assert_eq!(r.floors["A"]["ekf"].count, 2);
+        assert_eq!(r.floors["B"]["pdr"].count, 0);
+        assert!(r.table().contains("pooled"));
+    }
+}

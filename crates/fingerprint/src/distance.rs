@@ -1,0 +1,403 @@
+//! Signal-space distances and data representations.
+//!
+//! Distances are unit structs (or small parameter structs) behind one [`Distance`] trait, in
+//! the style of geo's metric spaces; [`Metric`] names them for configs and tools. Each works on
+//! fingerprints already mapped into a [`Representation`] (Torres-Sospedra et al. 2015):
+//!
+//! - `raw`: dBm with "not heard" = the map's fill value (default -110 dBm), stored shifted so
+//!   that "not heard" is 0 (Minkowski distances are translation invariant, so this is exactly
+//!   scikit-learn's Euclidean on `-110`-filled vectors);
+//! - `positive`: `v - null` with `null = min RSS - 1` (the weakest heard RSS of the map minus
+//!   1 dB); not heard = 0;
+//! - `exponential`: `exp(positive / alpha) / exp(-null / alpha)`, `alpha = 24`;
+//! - `powed`: `positive^beta / (-null)^beta`, `beta = e`; not heard = 0.
+//!
+//! Query values weaker than `null` clamp to `null` (not heard) in the non-raw representations.
+
+use serde::{Deserialize, Serialize};
+
+/// A distance between a query and a reference fingerprint in representation space.
+///
+/// `null` is the representation value of "not heard" (0 except for `exponential`); distances
+/// that treat heard and not-heard APs differently (PLGD, shared-AP) use it.
+pub trait Distance: Copy + Send + Sync {
+    /// Distance between `query` and `reference` (same length).
+    fn eval(&self, query: &[f32], reference: &[f32], null: f32) -> f32;
+}
+
+/// Manhattan (Minkowski q = 1): `sum |a - b|`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Manhattan;
+/// Euclidean (Minkowski q = 2): `sqrt(sum (a - b)^2)` (paper 000 eq. 3, paper 002 eq. 1).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Euclidean;
+/// Squared Euclidean: `sum (a - b)^2`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SquaredEuclidean;
+/// Sørensen (Bray-Curtis): `sum |a - b| / sum (a + b)`; 0 when both sums are 0.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Sorensen;
+/// Neyman chi-square: `sum (a - b)^2 / a` with `a` the reference value, floored at
+/// [`NEYMAN_FLOOR`] (so an AP the reference did not hear but the query did is a large term).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Neyman;
+
+/// Smallest denominator of [`Neyman`].
+pub const NEYMAN_FLOOR: f32 = 1e-3;
+
+/// Penalised log-Gaussian distance (after Torres-Sospedra et al. 2015): for an AP heard by
+/// both, `min((a - b)^2 / (2 sigma^2), -ln eps)` (the negative log of a Gaussian likelihood,
+/// floored at `eps`); for an AP heard by one side only, `-ln eps + alpha * v` with `v` its
+/// value above `null` (the penalty term); nothing for an AP heard by neither.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Plgd {
+    /// Gaussian width, representation units (5 for dB-like representations).
+    pub sigma: f32,
+    /// Likelihood floor.
+    pub epsilon: f32,
+    /// Penalty per unit of an unmatched AP's value.
+    pub alpha: f32,
+}
+
+impl Default for Plgd {
+    fn default() -> Self {
+        Self {
+            sigma: 5.0,
+            epsilon: 1e-3,
+            alpha: 0.1,
+        }
+    }
+}
+
+/// Shared-AP distance (findings.md): mean `|a - b|` over the APs both heard, plus
+/// `lambda * (heard by one only) / (heard by either)`. With no shared AP the mean term is
+/// [`SHARED_AP_NONE`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SharedAp {
+    /// Weight of the non-shared fraction (findings.md: 40-80).
+    pub lambda: f32,
+}
+
+/// Mean-difference term of [`SharedAp`] when nothing is shared, dB.
+pub const SHARED_AP_NONE: f32 = 100.0;
+
+impl Default for SharedAp {
+    fn default() -> Self {
+        Self { lambda: 60.0 }
+    }
+}
+
+const LANES: usize = 8;
+
+#[inline]
+fn lanes_sum(acc: [f32; LANES]) -> f32 {
+    acc.iter().sum()
+}
+
+impl Distance for Manhattan {
+    #[inline]
+    fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
+        let mut acc = [0f32; LANES];
+        let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+        let tail: f32 = ca
+            .remainder()
+            .iter()
+            .zip(cb.remainder())
+            .map(|(x, y)| (x - y).abs())
+            .sum();
+        for (x, y) in ca.zip(cb) {
+            for l in 0..LANES {
+                acc[l] += (x[l] - y[l]).abs();
+            }
+        }
+        lanes_sum(acc) + tail
+    }
+}
+
+impl Distance for SquaredEuclidean {
+    #[inline]
+    fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
+        let mut acc = [0f32; LANES];
+        let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+        let tail: f32 = ca
+            .remainder()
+            .iter()
+            .zip(cb.remainder())
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum();
+        for (x, y) in ca.zip(cb) {
+            for l in 0..LANES {
+                let d = x[l] - y[l];
+                acc[l] += d * d;
+            }
+        }
+        lanes_sum(acc) + tail
+    }
+}
+
+impl Distance for Euclidean {
+    #[inline]
+    fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        SquaredEuclidean.eval(a, b, null).sqrt()
+    }
+}
+
+impl Distance for Sorensen {
+    fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
+        let (mut num, mut den) = (0f32, 0f32);
+        for (x, y) in a.iter().zip(b) {
+            num += (x - y).abs();
+            den += x + y;
+        }
+        if den > 0.0 { num / den } else { 0.0 }
+    }
+}
+
+impl Distance for Neyman {
+    fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
+        a.iter()
+            .zip(b)
+            .map(|(q, r)| (q - r) * (q - r) / r.max(NEYMAN_FLOOR))
+            .sum()
+    }
+}
+
+impl Distance for Plgd {
+    fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        let cap = -self.epsilon.ln();
+        let two_s2 = 2.0 * self.sigma * self.sigma;
+        let mut d = 0f32;
+        for (&q, &r) in a.iter().zip(b) {
+            match (q > null, r > null) {
+                (true, true) => d += ((q - r) * (q - r) / two_s2).min(cap),
+                (true, false) => d += cap + self.alpha * (q - null),
+                (false, true) => d += cap + self.alpha * (r - null),
+                (false, false) => {}
+            }
+        }
+        d
+    }
+}
+
+impl Distance for SharedAp {
+    fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        let (mut sum, mut shared, mut union) = (0f32, 0u32, 0u32);
+        for (&q, &r) in a.iter().zip(b) {
+            let (hq, hr) = (q > null, r > null);
+            if hq && hr {
+                sum += (q - r).abs();
+                shared += 1;
+            }
+            if hq || hr {
+                union += 1;
+            }
+        }
+        if union == 0 {
+            return 0.0;
+        }
+        let mean = if shared > 0 {
+            sum / shared as f32
+        } else {
+            SHARED_AP_NONE
+        };
+        mean + self.lambda * (union - shared) as f32 / union as f32
+    }
+}
+
+/// A distance by name, for configs and tools.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Metric {
+    /// [`Manhattan`].
+    Manhattan,
+    /// [`Euclidean`].
+    #[default]
+    Euclidean,
+    /// [`SquaredEuclidean`].
+    SquaredEuclidean,
+    /// [`Sorensen`].
+    Sorensen,
+    /// [`Neyman`].
+    Neyman,
+    /// [`Plgd`].
+    Plgd(Plgd),
+    /// [`SharedAp`].
+    SharedAp(SharedAp),
+}
+
+impl Metric {
+    /// Short name (`manhattan`, `euclidean`, `sqeuclidean`, `sorensen`, `neyman`, `plgd`,
+    /// `shared_ap`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Metric::Manhattan => "manhattan",
+            Metric::Euclidean => "euclidean",
+            Metric::SquaredEuclidean => "sqeuclidean",
+            Metric::Sorensen => "sorensen",
+            Metric::Neyman => "neyman",
+            Metric::Plgd(_) => "plgd",
+            Metric::SharedAp(_) => "shared_ap",
+        }
+    }
+
+    /// Parses a short name (defaults for parameters).
+    pub fn parse(s: &str) -> Option<Self> {
+        Some(match s {
+            "manhattan" | "l1" => Metric::Manhattan,
+            "euclidean" | "l2" => Metric::Euclidean,
+            "sqeuclidean" => Metric::SquaredEuclidean,
+            "sorensen" => Metric::Sorensen,
+            "neyman" => Metric::Neyman,
+            "plgd" => Metric::Plgd(Plgd::default()),
+            "shared_ap" => Metric::SharedAp(SharedAp::default()),
+            _ => return None,
+        })
+    }
+
+    /// Evaluates the distance.
+    pub fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        match self {
+            Metric::Manhattan => Manhattan.eval(a, b, null),
+            Metric::Euclidean => Euclidean.eval(a, b, null),
+            Metric::SquaredEuclidean => SquaredEuclidean.eval(a, b, null),
+            Metric::Sorensen => Sorensen.eval(a, b, null),
+            Metric::Neyman => Neyman.eval(a, b, null),
+            Metric::Plgd(d) => d.eval(a, b, null),
+            Metric::SharedAp(d) => d.eval(a, b, null),
+        }
+    }
+}
+
+/// How RSS values are represented before distances are taken (Torres-Sospedra et al. 2015).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Representation {
+    /// dBm, not heard = the map's fill value (shifted so that not heard = 0).
+    #[default]
+    Raw,
+    /// `v - null`, `null = min RSS - 1`.
+    Positive,
+    /// `exp(positive / alpha) / exp(-null / alpha)`.
+    Exponential {
+        /// Scale, dB (24).
+        alpha: f32,
+    },
+    /// `positive^beta / (-null)^beta`.
+    Powed {
+        /// Exponent (e).
+        beta: f32,
+    },
+}
+
+impl Representation {
+    /// Short name (`raw`, `positive`, `exponential`, `powed`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Representation::Raw => "raw",
+            Representation::Positive => "positive",
+            Representation::Exponential { .. } => "exponential",
+            Representation::Powed { .. } => "powed",
+        }
+    }
+
+    /// Parses a short name with the literature's parameters (`alpha = 24`, `beta = e`).
+    pub fn parse(s: &str) -> Option<Self> {
+        Some(match s {
+            "raw" => Representation::Raw,
+            "positive" => Representation::Positive,
+            "exponential" => Representation::Exponential { alpha: 24.0 },
+            "powed" => Representation::Powed {
+                beta: std::f32::consts::E,
+            },
+            _ => return None,
+        })
+    }
+}
+
+/// A representation bound to a map: the reference levels it needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transform {
+    /// The representation.
+    pub representation: Representation,
+    /// dBm that maps to "not heard": the fill value for `raw`, `min RSS - 1` otherwise.
+    pub null_dbm: f32,
+}
+
+impl Transform {
+    /// Binds `representation` to a map's fill value and weakest heard RSS.
+    pub fn new(representation: Representation, fill_dbm: f32, min_heard_dbm: Option<f32>) -> Self {
+        let null_dbm = match representation {
+            Representation::Raw => fill_dbm,
+            _ => min_heard_dbm.unwrap_or(fill_dbm + 1.0) - 1.0,
+        };
+        Self {
+            representation,
+            null_dbm,
+        }
+    }
+
+    /// The representation value of "not heard".
+    pub fn null_value(&self) -> f32 {
+        self.apply(None)
+    }
+
+    /// Maps a heard value (dBm) or "not heard" (`None`) into the representation.
+    pub fn apply(&self, v: Option<f32>) -> f32 {
+        let null = self.null_dbm;
+        match self.representation {
+            Representation::Raw => v.map_or(0.0, |v| v - null),
+            Representation::Positive => v.map_or(0.0, |v| (v - null).max(0.0)),
+            Representation::Exponential { alpha } => {
+                let pos = v.map_or(0.0, |v| (v - null).max(0.0));
+                (pos / alpha).exp() / (-null / alpha).exp()
+            }
+            Representation::Powed { beta } => {
+                let pos = v.map_or(0.0, |v| (v - null).max(0.0));
+                let scale = (-null).max(1.0);
+                (pos / scale).powf(beta)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basic_values() {
+        let a = [1.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0];
+        let b = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0];
+        assert_eq!(Manhattan.eval(&a, &b, 0.0), 5.0);
+        assert_eq!(SquaredEuclidean.eval(&a, &b, 0.0), 9.0);
+        assert_eq!(Euclidean.eval(&a, &b, 0.0), 3.0);
+        assert_eq!(Sorensen.eval(&a, &b, 0.0), 5.0 / 11.0);
+        assert_eq!(Sorensen.eval(&[0.0], &[0.0], 0.0), 0.0);
+        assert!(Neyman.eval(&a, &b, 0.0) > 1000.0); // AP 0 unheard by the reference
+        let s = SharedAp { lambda: 10.0 }.eval(&a, &b, 0.0);
+        assert!((s - (2.0 + 10.0 / 3.0)).abs() < 1e-6, "{s}");
+        assert_eq!(
+            SharedAp { lambda: 10.0 }.eval(&[1.0, 0.0], &[0.0, 1.0], 0.0),
+            SHARED_AP_NONE + 10.0
+        );
+        let p = Plgd::default();
+        assert_eq!(p.eval(&a, &a, 0.0), 0.0);
+        assert!(p.eval(&a, &b, 0.0) > p.eval(&a, &a, 0.0));
+    }
+
+    #[test]
+    fn representations() {
+        let t = Transform::new(Representation::Raw, -110.0, Some(-100.0));
+        assert_eq!(t.apply(Some(-60.0)), 50.0);
+        assert_eq!(t.null_value(), 0.0);
+        let t = Transform::new(Representation::Positive, -110.0, Some(-100.0));
+        assert_eq!(t.null_dbm, -101.0);
+        assert_eq!(t.apply(Some(-100.0)), 1.0);
+        assert_eq!(t.apply(Some(-105.0)), 0.0);
+        let t = Transform::new(Representation::parse("powed").unwrap(), -110.0, Some(-100.0));
+        assert_eq!(t.null_value(), 0.0);
+        assert!((t.apply(Some(0.0)) - 1.0).abs() < 1e-6);
+        let t = Transform::new(Representation::parse("exponential").unwrap(), -110.0, Some(-100.0));
+        assert!(t.null_value() > 0.0 && t.apply(Some(-50.0)) > t.null_value());
+    }
+}

@@ -1,0 +1,484 @@
+//! The radio map (paper 000 §2.1 eq. 2, paper 001 §4.1): reference points with the mean RSS
+//! per access point, sample counts and spread, and the AP vocabulary.
+
+use crate::FingerprintError;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use wipdr_core::{Bssid, Point2};
+use wipdr_io::fingerprint_csv::{FingerprintLabel, FingerprintTable, NOT_DETECTED};
+
+/// Weakest RSSI accepted anywhere in the crate, dBm.
+pub const MIN_VALID_RSSI_DBM: f64 = -120.0;
+/// Strongest RSSI accepted anywhere in the crate, dBm.
+pub const MAX_VALID_RSSI_DBM: f64 = 0.0;
+
+/// Whether an RSSI is finite and within `[-120, 0]` dBm.
+pub fn is_valid_rssi(v: f64) -> bool {
+    v.is_finite() && (MIN_VALID_RSSI_DBM..=MAX_VALID_RSSI_DBM).contains(&v)
+}
+
+/// Settings of a radio map.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RadioMapConfig {
+    /// The RSS written for an AP a reference point did not hear, dBm (algorithms.md: -110).
+    pub not_heard_dbm: f32,
+}
+
+impl Default for RadioMapConfig {
+    fn default() -> Self {
+        Self {
+            not_heard_dbm: -110.0,
+        }
+    }
+}
+
+/// The AP vocabulary: column index <-> name and, where known, BSSID.
+///
+/// Benchmark maps name their columns `ap_000 …` and have no BSSIDs; maps built from walks
+/// name each column by its BSSID's text form.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(from = "VocabularyRepr", into = "VocabularyRepr")]
+pub struct ApVocabulary {
+    names: Vec<String>,
+    bssids: Vec<Option<Bssid>>,
+    by_name: HashMap<String, usize>,
+    by_bssid: HashMap<Bssid, usize>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct VocabularyRepr {
+    names: Vec<String>,
+    bssids: Vec<Option<Bssid>>,
+}
+
+impl From<VocabularyRepr> for ApVocabulary {
+    fn from(r: VocabularyRepr) -> Self {
+        let mut v = ApVocabulary::default();
+        for (i, name) in r.names.into_iter().enumerate() {
+            v.push(name, r.bssids.get(i).copied().flatten());
+        }
+        v
+    }
+}
+
+impl From<ApVocabulary> for VocabularyRepr {
+    fn from(v: ApVocabulary) -> Self {
+        Self {
+            names: v.names,
+            bssids: v.bssids,
+        }
+    }
+}
+
+impl PartialEq for ApVocabulary {
+    fn eq(&self, other: &Self) -> bool {
+        self.names == other.names && self.bssids == other.bssids
+    }
+}
+
+impl ApVocabulary {
+    /// A vocabulary of named columns without BSSIDs (benchmark files).
+    pub fn from_names<I: IntoIterator<Item = String>>(names: I) -> Self {
+        let mut v = Self::default();
+        for n in names {
+            v.push(n, None);
+        }
+        v
+    }
+
+    /// A vocabulary of BSSIDs, each named by its text form.
+    pub fn from_bssids<I: IntoIterator<Item = Bssid>>(bssids: I) -> Self {
+        let mut v = Self::default();
+        for b in bssids {
+            v.push(b.to_string(), Some(b));
+        }
+        v
+    }
+
+    /// Appends a column (or returns the existing column of that name); returns its index.
+    pub fn push(&mut self, name: String, bssid: Option<Bssid>) -> usize {
+        if let Some(&i) = self.by_name.get(&name) {
+            return i;
+        }
+        let i = self.names.len();
+        self.by_name.insert(name.clone(), i);
+        if let Some(b) = bssid {
+            self.by_bssid.entry(b).or_insert(i);
+        }
+        self.names.push(name);
+        self.bssids.push(bssid);
+        i
+    }
+
+    /// Number of columns.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Whether there are no columns.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// Column of a BSSID.
+    pub fn column_of_bssid(&self, b: Bssid) -> Option<usize> {
+        self.by_bssid.get(&b).copied()
+    }
+
+    /// Column of a name.
+    pub fn column_of_name(&self, name: &str) -> Option<usize> {
+        self.by_name.get(name).copied()
+    }
+
+    /// Name of a column.
+    pub fn name(&self, column: usize) -> &str {
+        &self.names[column]
+    }
+
+    /// BSSID of a column, where known.
+    pub fn bssid(&self, column: usize) -> Option<Bssid> {
+        self.bssids.get(column).copied().flatten()
+    }
+
+    /// All names in column order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+}
+
+/// One reference point: where it is and how many scans went into it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ReferencePoint {
+    /// Position in the floor frame, metres.
+    pub position: Point2,
+    /// Height, metres, where known.
+    pub z: Option<f64>,
+    /// Floor index, where known.
+    pub floor: Option<i32>,
+    /// Building index, where known.
+    pub building: Option<i32>,
+    /// Number of scans averaged into this point.
+    pub scans: u32,
+}
+
+/// A radio map: `n` reference points x `m` APs, stored dense and row-major.
+///
+/// For each (point, AP): the mean RSS over the scans that heard the AP (paper 000 eq. 2), the
+/// number of those scans (0 = never heard) and the standard deviation. Entries never heard
+/// hold the configured "not heard" value, so [`RadioMap::filled_row`] is the fingerprint as a
+/// matcher sees it.
+///
+/// ```
+/// use wipdr_fingerprint::{RadioMap, RadioMapConfig};
+/// use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
+/// let csv = "ap_000,ap_001,x,y,z,floor,building\n-60,100,1,2,0,0,0\n";
+/// let table = read_fingerprint_csv_from(csv.as_bytes(), "inline").unwrap();
+/// let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
+/// assert_eq!(map.filled_row(0), &[-60.0, -110.0]);
+/// assert_eq!(map.rss(0, 1), None);
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RadioMap {
+    /// The AP columns.
+    pub vocabulary: ApVocabulary,
+    /// The reference points, one per row.
+    pub points: Vec<ReferencePoint>,
+    config: RadioMapConfig,
+    mean_dbm: Vec<f32>,
+    counts: Vec<u16>,
+    spread_db: Vec<f32>,
+}
+
+impl RadioMap {
+    /// An empty map over a vocabulary.
+    pub fn new(vocabulary: ApVocabulary, config: RadioMapConfig) -> Self {
+        Self {
+            vocabulary,
+            points: Vec::new(),
+            config,
+            mean_dbm: Vec::new(),
+            counts: Vec::new(),
+            spread_db: Vec::new(),
+        }
+    }
+
+    /// Builds a map from a benchmark table: one reference point per row, one sample per heard
+    /// AP, spread 0; floor/building from the labels.
+    pub fn from_table(
+        table: &FingerprintTable,
+        config: RadioMapConfig,
+    ) -> Result<Self, FingerprintError> {
+        let m = table.n_aps();
+        if table.rss.len() != m * table.n_rows() {
+            return Err(FingerprintError::InvalidInput(format!(
+                "table has {} RSS values for {} rows x {m} APs",
+                table.rss.len(),
+                table.n_rows()
+            )));
+        }
+        let mut map = Self::new(
+            ApVocabulary::from_names(table.ap_names.iter().cloned()),
+            config,
+        );
+        if map.vocabulary.len() != m {
+            return Err(FingerprintError::InvalidInput(
+                "duplicate AP column names".into(),
+            ));
+        }
+        let mut row = vec![None; m];
+        for (i, label) in table.labels.iter().enumerate() {
+            for (slot, &v) in row.iter_mut().zip(table.row(i)) {
+                *slot = (v != NOT_DETECTED).then_some(v);
+            }
+            map.push_point(point_of_label(label), &row, None)?;
+        }
+        Ok(map)
+    }
+
+    /// Appends a reference point. `mean` has one entry per AP column (`None` = not heard);
+    /// `counts` (optional) the number of scans per AP and `spread` the standard deviation.
+    /// Means must be valid RSSI values.
+    pub fn push_point(
+        &mut self,
+        point: ReferencePoint,
+        mean: &[Option<f32>],
+        stats: Option<(&[u16], &[f32])>,
+    ) -> Result<(), FingerprintError> {
+        let m = self.n_aps();
+        if mean.len() != m {
+            return Err(FingerprintError::DimensionMismatch {
+                expected: m,
+                found: mean.len(),
+            });
+        }
+        if let Some((c, s)) = stats
+            && (c.len() != m || s.len() != m)
+        {
+            return Err(FingerprintError::DimensionMismatch {
+                expected: m,
+                found: c.len().min(s.len()),
+            });
+        }
+        if !(point.position.x.is_finite() && point.position.y.is_finite()) {
+            return Err(FingerprintError::InvalidInput(format!(
+                "reference point {} has a non-finite position",
+                self.points.len()
+            )));
+        }
+        for (j, v) in mean.iter().enumerate() {
+            if let Some(v) = v
+                && !is_valid_rssi(f64::from(*v))
+            {
+                return Err(FingerprintError::InvalidRssi {
+                    ap: self.vocabulary.name(j).to_string(),
+                    value: f64::from(*v),
+                });
+            }
+            self.mean_dbm.push(v.unwrap_or(self.config.not_heard_dbm));
+            let (c, s) = match (v, stats) {
+                (None, _) => (0, 0.0),
+                (Some(_), None) => (1, 0.0),
+                (Some(_), Some((c, s))) => (c[j].max(1), s[j].max(0.0)),
+            };
+            self.counts.push(c);
+            self.spread_db.push(c.min(1) as f32 * s);
+        }
+        self.points.push(point);
+        Ok(())
+    }
+
+    /// Number of reference points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether the map has no reference points.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Number of AP columns.
+    pub fn n_aps(&self) -> usize {
+        self.vocabulary.len()
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> RadioMapConfig {
+        self.config
+    }
+
+    /// The "not heard" value, dBm.
+    pub fn not_heard_dbm(&self) -> f32 {
+        self.config.not_heard_dbm
+    }
+
+    /// Changes the "not heard" value, rewriting the never-heard entries.
+    pub fn set_not_heard_dbm(&mut self, v: f32) -> Result<(), FingerprintError> {
+        if !v.is_finite() {
+            return Err(FingerprintError::InvalidConfig(format!(
+                "not_heard_dbm must be finite, got {v}"
+            )));
+        }
+        self.config.not_heard_dbm = v;
+        for (x, &c) in self.mean_dbm.iter_mut().zip(&self.counts) {
+            if c == 0 {
+                *x = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// The fingerprint of point `i` with never-heard APs at the "not heard" value.
+    pub fn filled_row(&self, i: usize) -> &[f32] {
+        let m = self.n_aps();
+        &self.mean_dbm[i * m..(i + 1) * m]
+    }
+
+    /// The whole dense matrix, row-major `len() x n_aps()`.
+    pub fn filled_matrix(&self) -> &[f32] {
+        &self.mean_dbm
+    }
+
+    /// Mean RSS of AP `j` at point `i`, `None` if never heard there.
+    pub fn rss(&self, i: usize, j: usize) -> Option<f32> {
+        let k = i * self.n_aps() + j;
+        (self.counts[k] > 0).then_some(self.mean_dbm[k])
+    }
+
+    /// Number of scans that heard AP `j` at point `i`.
+    pub fn count(&self, i: usize, j: usize) -> u16 {
+        self.counts[i * self.n_aps() + j]
+    }
+
+    /// Standard deviation of AP `j`'s RSS at point `i` (0 with fewer than two samples).
+    pub fn spread(&self, i: usize, j: usize) -> f32 {
+        self.spread_db[i * self.n_aps() + j]
+    }
+
+    /// The heard APs of point `i` as `(column, mean dBm)`, in column order.
+    pub fn heard(&self, i: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
+        let m = self.n_aps();
+        let row = &self.mean_dbm[i * m..(i + 1) * m];
+        let counts = &self.counts[i * m..(i + 1) * m];
+        row.iter()
+            .zip(counts)
+            .enumerate()
+            .filter(|(_, (_, c))| **c > 0)
+            .map(|(j, (v, _))| (j, *v))
+    }
+
+    /// Weakest heard RSS in the map (dBm); `None` if nothing is heard.
+    pub fn min_heard_rss(&self) -> Option<f32> {
+        self.mean_dbm
+            .iter()
+            .zip(&self.counts)
+            .filter(|(_, c)| **c > 0)
+            .map(|(v, _)| *v)
+            .min_by(f32::total_cmp)
+    }
+
+    /// A map with only the points `indices` (in that order), same vocabulary.
+    pub fn subset(&self, indices: &[usize]) -> Self {
+        let m = self.n_aps();
+        let mut out = Self::new(self.vocabulary.clone(), self.config);
+        for &i in indices {
+            out.points.push(self.points[i]);
+            out.mean_dbm
+                .extend_from_slice(&self.mean_dbm[i * m..(i + 1) * m]);
+            out.counts.extend_from_slice(&self.counts[i * m..(i + 1) * m]);
+            out.spread_db
+                .extend_from_slice(&self.spread_db[i * m..(i + 1) * m]);
+        }
+        out
+    }
+
+    /// Serialises the map with bincode (standard configuration).
+    pub fn to_bincode(&self) -> Result<Vec<u8>, FingerprintError> {
+        bincode::serde::encode_to_vec(self, bincode::config::standard())
+            .map_err(|e| FingerprintError::InvalidInput(format!("bincode encode: {e}")))
+    }
+
+    /// Reads a map written by [`RadioMap::to_bincode`].
+    pub fn from_bincode(bytes: &[u8]) -> Result<Self, FingerprintError> {
+        let (map, _) = bincode::serde::decode_from_slice(bytes, bincode::config::standard())
+            .map_err(|e| FingerprintError::InvalidInput(format!("bincode decode: {e}")))?;
+        Ok(map)
+    }
+}
+
+/// The reference point of a benchmark label.
+pub fn point_of_label(label: &FingerprintLabel) -> ReferencePoint {
+    ReferencePoint {
+        position: Point2::new(label.x, label.y),
+        z: Some(label.z),
+        floor: Some(label.floor),
+        building: Some(label.building),
+        scans: 1,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small() -> RadioMap {
+        let mut map = RadioMap::new(
+            ApVocabulary::from_names(["a".to_string(), "b".to_string()]),
+            RadioMapConfig::default(),
+        );
+        let p = ReferencePoint {
+            position: Point2::new(1.0, 2.0),
+            z: None,
+            floor: Some(1),
+            building: None,
+            scans: 3,
+        };
+        map.push_point(p, &[Some(-50.0), None], Some((&[3, 0], &[2.0, 0.0])))
+            .unwrap();
+        map
+    }
+
+    #[test]
+    fn fill_and_stats() {
+        let mut map = small();
+        assert_eq!(map.filled_row(0), &[-50.0, -110.0]);
+        assert_eq!(map.count(0, 0), 3);
+        assert_eq!(map.spread(0, 0), 2.0);
+        assert_eq!(map.count(0, 1), 0);
+        map.set_not_heard_dbm(-100.0).unwrap();
+        assert_eq!(map.filled_row(0), &[-50.0, -100.0]);
+        assert!(map.set_not_heard_dbm(f32::NAN).is_err());
+        assert_eq!(map.heard(0).collect::<Vec<_>>(), vec![(0, -50.0)]);
+    }
+
+    #[test]
+    fn rejects_bad_points() {
+        let mut map = small();
+        let p = map.points[0];
+        assert!(matches!(
+            map.push_point(p, &[Some(f32::NAN), None], None),
+            Err(FingerprintError::InvalidRssi { .. })
+        ));
+        assert!(matches!(
+            map.push_point(p, &[Some(-50.0)], None),
+            Err(FingerprintError::DimensionMismatch { .. })
+        ));
+        let mut q = p;
+        q.position.x = f64::INFINITY;
+        assert!(map.push_point(q, &[None, None], None).is_err());
+        assert_eq!(map.len(), 1);
+    }
+
+    #[test]
+    fn bincode_and_json_roundtrip() {
+        let map = small();
+        let back = RadioMap::from_bincode(&map.to_bincode().unwrap()).unwrap();
+        assert_eq!(back, map);
+        assert_eq!(back.vocabulary.column_of_name("b"), Some(1));
+        let v = ApVocabulary::from_bssids([Bssid(7)]);
+        let json = serde_json::to_string(&v).unwrap();
+        let v2: ApVocabulary = serde_json::from_str(&json).unwrap();
+        assert_eq!(v2.column_of_bssid(Bssid(7)), Some(0));
+    }
+}

@@ -1,0 +1,129 @@
+//! The error type of every reader and writer in this crate.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Errors of the readers, writers and the cache. Each names the file and, where it makes
+/// sense, the line (1-based) or the JSON field that failed.
+#[derive(Debug, Error)]
+pub enum IoError {
+    /// An operating-system or decompression error while reading or writing a file.
+    #[error("{path}: line {line}: {source}", path = path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The last line read completely before the error (0 before the first line).
+        line: usize,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file or directory could not be opened, listed or written.
+    #[error("{path}: {source}", path = path.display())]
+    File {
+        /// The file or directory.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A line longer than [`crate::Limits::max_line_bytes`].
+    #[error("{path}: line {line}: longer than the limit of {limit} bytes", path = path.display())]
+    LineTooLong {
+        /// The file.
+        path: PathBuf,
+        /// The line (1-based).
+        line: usize,
+        /// The limit in bytes.
+        limit: usize,
+    },
+    /// More (decompressed) input than [`crate::Limits::max_input_bytes`] or
+    /// [`crate::Limits::max_json_bytes`].
+    #[error("{path}: more than the limit of {limit} bytes of (decompressed) input", path = path.display())]
+    InputTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The limit in bytes.
+        limit: u64,
+    },
+    /// More records than [`crate::Limits::max_records`].
+    #[error("{path}: line {line}: more than the limit of {limit} records", path = path.display())]
+    TooManyRecords {
+        /// The file.
+        path: PathBuf,
+        /// The line at which the limit was crossed.
+        line: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// A Wi-Fi scan (lines sharing one time) with more entries than
+    /// [`crate::Limits::max_scan_entries`].
+    #[error("{path}: line {line}: field TYPE_WIFI: scan at t={t} has more than the limit of {limit} entries", path = path.display())]
+    ScanTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The line at which the limit was crossed.
+        line: usize,
+        /// The scan time (Unix ms).
+        t: i64,
+        /// The limit.
+        limit: usize,
+    },
+    /// A JSON file that is not valid JSON.
+    #[error("{path}: invalid JSON: {source}", path = path.display())]
+    JsonSyntax {
+        /// The file.
+        path: PathBuf,
+        /// The parser's error (with line and column).
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A JSON or GeoJSON file whose content is wrong: a missing or invalid field, too many
+    /// features or vertices, a degenerate bounding box.
+    #[error("{path}: field {field}: {message}", path = path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The field, as a JSON path (e.g. `features[0].geometry.coordinates`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A folder that does not look like an ILC floor folder.
+    #[error("{path}: not a floor folder: {message}", path = path.display())]
+    NotAFloor {
+        /// The folder.
+        path: PathBuf,
+        /// What is missing.
+        message: String,
+    },
+    /// A value the writer refuses to write (e.g. a non-finite number).
+    #[error("cannot write field {field}: {message}")]
+    Unwritable {
+        /// The field.
+        field: String,
+        /// Why.
+        message: String,
+    },
+}
+
+impl IoError {
+    pub(crate) fn file(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::File {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub(crate) fn invalid(
+        path: impl Into<PathBuf>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Self::Invalid {
+            path: path.into(),
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,45 @@
+# wipdr shortcuts (cargo commands underneath). `just --list` shows them.
+
+data := "../shared/data"
+floors := data + "/ilc20/site1/F1 " + data + "/ilc20/site1/F2 " + data + "/ilc20/site2/F1 " + data + "/ilc20/site2/F2 " + data + "/ilc20/site2/F3"
+
+# The demo on the embedded fixtures (the README's first command).
+demo:
+    cargo run --release --bin wipdr -- demo
+
+# All tests (the README's second command).
+test:
+    cargo test --workspace
+
+# fmt check and clippy as CI runs them.
+lint:
+    cargo fmt --all -- --check
+    cargo clippy --workspace --all-targets -- -D warnings
+
+# Everything CI runs.
+ci:
+    bash .ci/run
+
+# Criterion benchmarks (all, or one: `just bench matchers`).
+bench name="":
+    cargo bench -p wipdr-benches {{ if name == "" { "" } else { "--bench " + name } }}
+
+# Inspect the five real floors.
+inspect:
+    for f in {{floors}}; do cargo run --release --bin wipdr -- inspect $f; done
+
+# Evaluate all schemes on the five real floors.
+eval schemes="wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf":
+    cargo run --release --bin wipdr -- eval --data {{floors}} --schemes {{schemes}} --json docs/results/eval.json
+
+# A parameter sweep over the five real floors.
+sweep config out:
+    cargo run --release --bin wipdr -- sweep --config {{config}} --data {{floors}} --out {{out}} --resume
+
+# Fingerprint benchmarks on the nine public datasets.
+fingerprint:
+    cargo run --release --bin wipdr -- fingerprint-eval --dataset {{data}}/fingerprint/* --matcher nn --matcher wknn --json docs/results/fingerprint.json
+
+# Regenerate the committed synthetic fixtures.
+fixtures:
+    cargo run --release --bin wipdr -- simulate --out fixtures/sim --seed 7
