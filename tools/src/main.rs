@@ -8,6 +8,8 @@ use clap::{Parser, Subcommand};
 use tracing_subscriber::EnvFilter;
 
 mod cmd;
+mod data;
+mod eval_plots;
 mod plotting;
 mod progress;
 

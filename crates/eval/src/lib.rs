@@ -20,6 +20,7 @@
 //! assert_eq!(report.pooled["wifi"].mean, 5.0);
 //! ```
 
+pub mod pipeline;
 pub mod report;
 pub mod scoring;
 pub mod sweep;

@@ -296,10 +296,13 @@ pub fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(), SweepE
         let obj = cur
             .as_object_mut()
             .ok_or_else(|| err(&format!("{:?} is not a table", parts[..i].join("."))))?;
-        let slot = obj.get_mut(*part).ok_or_else(|| {
+        if !obj.contains_key(*part) {
             let known: Vec<&String> = obj.keys().collect();
-            err(&format!("no field {part:?} (fields: {known:?})"))
-        })?;
+            return Err(err(&format!("no field {part:?} (fields: {known:?})")));
+        }
+        let slot = obj
+            .get_mut(*part)
+            .ok_or_else(|| err("field vanished"))?;
         if i + 1 == parts.len() {
             *slot = value;
             return Ok(());
@@ -673,4 +676,125 @@ mod tests {
         let m = merge(&[path.clone(), path], &merged).unwrap();
         assert_eq!(m.len(), 3);
     }
+}
+
+/// Options of [`run_sweep`].
+#[derive(Debug, Clone, Default)]
+pub struct SweepOptions {
+    /// Continue an existing results file (skip finished configs).
+    pub resume: bool,
+    /// Run only shard `.0` of `.1` (`index % n == i`).
+    pub shard: Option<(usize, usize)>,
+    /// Stop after this many configs have finished in this run (the rest stays to resume).
+    pub max_configs: Option<usize>,
+}
+
+/// The outcome of [`run_sweep`].
+#[derive(Debug, Clone)]
+pub struct SweepOutcome {
+    /// Every finished row in the file, sorted by index (when the run completed) or as far as
+    /// it got.
+    pub rows: Vec<SweepRow>,
+    /// Configs this run evaluated.
+    pub ran: usize,
+    /// Configs skipped because the file already had them.
+    pub skipped: usize,
+    /// Whether every config of this (shard of the) sweep is now in the file.
+    pub complete: bool,
+}
+
+/// Builds the evaluation config of one sweep point: `fuser.` paths address the scheme's
+/// config (`schemes.<scheme>.`), other paths the evaluation config itself.
+pub fn config_for(
+    base: &crate::pipeline::EvalConfig,
+    scheme: &str,
+    point: &SweepPoint,
+) -> Result<crate::pipeline::EvalConfig, SweepError> {
+    let mut cfg = base.clone();
+    if !cfg.schemes.contains_key(scheme) {
+        let d = cfg
+            .scheme(scheme)
+            .map_err(|e| SweepError::Spec(e.to_string()))?;
+        cfg.schemes.insert(scheme.to_string(), d);
+    }
+    let mut v = serde_json::to_value(&cfg).map_err(|e| SweepError::Spec(e.to_string()))?;
+    for (path, value) in &point.params {
+        let full = match path.strip_prefix("fuser.") {
+            Some(rest) => format!("schemes.{scheme}.{rest}"),
+            None => path.clone(),
+        };
+        set_path(&mut v, &full, value.clone())?;
+    }
+    serde_json::from_value(v).map_err(|e| SweepError::Spec(format!("config of sweep point {}: {e}", point.index)))
+}
+
+/// Runs a sweep over prepared floors: configs grouped by what [`crate::pipeline::prepare`]
+/// depends on (so fusion-only sweeps prepare once), each group's configs in parallel, every
+/// finished config appended to `out` at once. `on_done` is called after each config.
+pub fn run_sweep(
+    spec: &SweepSpec,
+    base: &crate::pipeline::EvalConfig,
+    floors: &[crate::pipeline::FloorInput],
+    out: &Path,
+    options: &SweepOptions,
+    on_done: &(dyn Fn() + Sync),
+) -> Result<SweepOutcome, crate::pipeline::EvalError> {
+    use rayon::prelude::*;
+    let to_eval = |e: SweepError| crate::pipeline::EvalError::Sweep(e.to_string());
+    base.scheme(&spec.scheme)?;
+    let mut points = spec.expand().map_err(to_eval)?;
+    if let Some((i, n)) = options.shard {
+        if n == 0 || i >= n {
+            return Err(to_eval(SweepError::Spec(format!("shard {i}/{n}: need I < N"))));
+        }
+        points = shard(points, i, n);
+    }
+    let (file, done_rows) = ResultsFile::open(out, spec.columns(), options.resume).map_err(to_eval)?;
+    let done = finished_ids(&done_rows);
+    let todo: Vec<SweepPoint> = points.iter().filter(|p| !done.contains(&p.id())).cloned().collect();
+    let skipped = points.len() - todo.len();
+    let budget = options.max_configs.unwrap_or(usize::MAX).min(todo.len());
+    let todo = &todo[..budget];
+    // Group by preparation key, keeping sweep order inside groups.
+    let mut groups: Vec<(String, Vec<(SweepPoint, crate::pipeline::EvalConfig)>)> = Vec::new();
+    for p in todo {
+        let cfg = config_for(base, &spec.scheme, p).map_err(to_eval)?;
+        let key = cfg.preparation_key();
+        match groups.iter_mut().find(|g| g.0 == key) {
+            Some(g) => g.1.push((p.clone(), cfg)),
+            None => groups.push((key, vec![(p.clone(), cfg)])),
+        }
+    }
+    let schemes = vec![spec.scheme.clone()];
+    let mut ran = 0;
+    for (_, group) in &groups {
+        let prepared = crate::pipeline::prepare(floors, &group[0].1)?;
+        let results: Vec<Result<(), crate::pipeline::EvalError>> = group
+            .par_iter()
+            .map(|(p, cfg)| {
+                let report = crate::pipeline::run_prepared(floors, &prepared, cfg, &schemes, &|| {})?;
+                let summary = report.pooled.get(&spec.scheme).copied().unwrap_or_default();
+                file.append(p, &summary, spec.objective).map_err(to_eval)?;
+                on_done();
+                Ok(())
+            })
+            .collect();
+        for r in results {
+            r?;
+        }
+        ran += group.len();
+    }
+    let complete = skipped + ran == points.len();
+    let rows = if complete {
+        file.finish().map_err(to_eval)?
+    } else {
+        drop(file);
+        read_rows(out, &header(&spec.columns())).map_err(to_eval)?
+    };
+    Ok(SweepOutcome {
+        rows,
+        ran,
+        skipped,
+        complete,
+    })
 }

@@ -70,6 +70,12 @@ pub trait ApFloat:
     fn to_f64(self) -> f64;
     /// Whether the value is finite.
     fn is_finite_value(self) -> bool;
+    /// Whether scikit-learn's tie-breaking noise (relative size `f64::EPSILON`, absolute
+    /// `100 * f64::MIN_POSITIVE`) can change a value of this type. For `f32` it cannot: the
+    /// noise is below half an `f32` ulp of every finite value (and underflows at zero), so
+    /// adding it in `f64` and rounding back returns the value unchanged (up to the sign of a
+    /// zero, which no comparison or sum can see); it is then skipped.
+    const SKLEARN_NOISE_VISIBLE: bool;
 }
 
 impl ApFloat for f64 {
@@ -84,6 +90,7 @@ impl ApFloat for f64 {
     fn is_finite_value(self) -> bool {
         self.is_finite()
     }
+    const SKLEARN_NOISE_VISIBLE: bool = true;
 }
 
 impl ApFloat for f32 {
@@ -98,6 +105,7 @@ impl ApFloat for f32 {
     fn is_finite_value(self) -> bool {
         self.is_finite()
     }
+    const SKLEARN_NOISE_VISIBLE: bool = false;
 }
 
 /// A dense square similarity matrix, row-major and contiguous: `s(i, j)` is how well `j`
@@ -379,7 +387,9 @@ pub fn affinity_propagation_owned<T: ApFloat>(
     for (k, &p) in preferences.iter().enumerate() {
         s.data[k * n + k] = T::from_f64(p);
     }
-    if let TieBreakNoise::SklearnCompatible { seed } = config.noise {
+    if let TieBreakNoise::SklearnCompatible { seed } = config.noise
+        && T::SKLEARN_NOISE_VISIBLE
+    {
         add_sklearn_noise(&mut s.data, seed);
     }
 
@@ -416,8 +426,8 @@ fn compute_preferences<T: ApFloat>(
             v.clone()
         }
         Preference::GlobalMedian => {
-            let mut all: Vec<f64> = s.data.par_iter().map(|v| v.to_f64()).collect();
-            vec![median_in_place(&mut all); n]
+            let mut all = s.data.clone();
+            vec![median_of(&mut all); n]
         }
         Preference::RowMedian => (0..n)
             .into_par_iter()
@@ -433,6 +443,22 @@ fn compute_preferences<T: ApFloat>(
             })
             .collect(),
     })
+}
+
+/// [`median_in_place`] for any [`ApFloat`] (finite values), computed in `f64`.
+fn median_of<T: ApFloat>(values: &mut [T]) -> f64 {
+    let len = values.len();
+    let mid = len / 2;
+    let order = |a: &T, b: &T| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal);
+    let (_, &mut upper, _) = values.select_nth_unstable_by(mid, order);
+    if len % 2 == 1 {
+        upper.to_f64()
+    } else {
+        let lower = values[..mid]
+            .iter()
+            .fold(T::NEG_INFINITY, |m, &v| if v > m { v } else { m });
+        (lower.to_f64() + upper.to_f64()) / 2.0
+    }
 }
 
 /// Median as NumPy computes it (mean of the two middle values for an even count).
@@ -492,8 +518,7 @@ fn iterate<T: ApFloat>(s: &SimilarityMatrix<T>, config: &AffinityConfig) -> (Vec
             let a_zero = vec![T::ZERO; n];
             for (local, (r_row, s_row)) in r_blk.chunks_mut(n).zip(s_blk.chunks(n)).enumerate() {
                 let i = b * ROW_BLOCK + local;
-                update_responsibilities(r_row, &a_zero, s_row, damping, keep);
-                accumulate_positive(part, r_row, i);
+                update_responsibilities(r_row, &a_zero, s_row, part, i, damping, keep);
             }
         });
 
@@ -521,8 +546,7 @@ fn iterate<T: ApFloat>(s: &SimilarityMatrix<T>, config: &AffinityConfig) -> (Vec
                     update_availabilities(a_row, r_row, col_sum_ref, i, damping, keep);
                     flags[local] = a_row[i] + r_row[i] > T::ZERO;
                     if more {
-                        update_responsibilities(r_row, a_row, s_row, damping, keep);
-                        accumulate_positive(part, r_row, i);
+                        update_responsibilities(r_row, a_row, s_row, part, i, damping, keep);
                     }
                 }
             });
@@ -554,44 +578,90 @@ fn iterate<T: ApFloat>(s: &SimilarityMatrix<T>, config: &AffinityConfig) -> (Vec
     (is_exemplar, iterations, converged)
 }
 
-/// `r = damping * r + (1 - damping) * (s - max_{k' != k}(a + s))` (eq. 4) for one row.
-fn update_responsibilities<T: ApFloat>(r: &mut [T], a: &[T], s: &[T], damping: T, keep: T) {
-    // Largest a + s, its first index, and the largest over the other indices.
+const LANES: usize = 8;
+
+#[inline(always)]
+fn fmax<T: ApFloat>(a: T, b: T) -> T {
+    if a > b { a } else { b }
+}
+
+#[inline(always)]
+fn fmin<T: ApFloat>(a: T, b: T) -> T {
+    if a < b { a } else { b }
+}
+
+/// Largest value of `a + s`, the first index where it occurs, and the largest value over the
+/// other indices (equal to the largest when it occurs twice), as NumPy's
+/// `argmax` / `tmp[I] = -inf` / `max` compute them. Lane-parallel, branch-free inner loop.
+#[inline]
+fn top_two<T: ApFloat>(a: &[T], s: &[T]) -> (T, usize, T) {
+    let mut b1 = [T::NEG_INFINITY; LANES];
+    let mut b2 = [T::NEG_INFINITY; LANES];
+    let mut at = [usize::MAX; LANES];
+    let ca = a.chunks_exact(LANES);
+    let cs = s.chunks_exact(LANES);
+    let tail_start = a.len() - ca.remainder().len();
+    for (c, (xa, xs)) in ca.zip(cs).enumerate() {
+        for l in 0..LANES {
+            let v = xa[l] + xs[l];
+            b2[l] = fmax(b2[l], fmin(b1[l], v));
+            let better = v > b1[l];
+            at[l] = if better { c * LANES + l } else { at[l] };
+            b1[l] = if better { v } else { b1[l] };
+        }
+    }
     let mut best = T::NEG_INFINITY;
-    for (&av, &sv) in a.iter().zip(s) {
-        let v = av + sv;
-        if v > best {
-            best = v;
-        }
-    }
-    let best_at = a
-        .iter()
-        .zip(s)
-        .position(|(&av, &sv)| av + sv == best)
-        .unwrap_or(0);
+    let mut best_at = usize::MAX;
     let mut second = T::NEG_INFINITY;
-    for (k, (&av, &sv)) in a.iter().zip(s).enumerate() {
-        let v = if k == best_at { T::NEG_INFINITY } else { av + sv };
-        if v > second {
-            second = v;
+    let mut offer = |v: T, k: usize| {
+        if v > best || (v == best && k < best_at) {
+            second = fmax(second, best);
+            best = v;
+            best_at = k;
+        } else {
+            second = fmax(second, v);
+        }
+    };
+    for l in 0..LANES {
+        if at[l] != usize::MAX {
+            offer(b1[l], at[l]);
         }
     }
+    for (k, (&av, &sv)) in a[tail_start..].iter().zip(&s[tail_start..]).enumerate() {
+        offer(av + sv, tail_start + k);
+    }
+    for &v in &b2 {
+        second = fmax(second, v);
+    }
+    (best, best_at.min(a.len().saturating_sub(1)), second)
+}
+
+/// Responsibility update (eq. 4) for row `i`:
+/// `r = damping * r + (1 - damping) * (s - max_{k' != k}(a + s))`, then accumulates
+/// `max(r, 0)` (the diagonal with its sign) into the block's column sums `part`.
+#[inline]
+fn update_responsibilities<T: ApFloat>(
+    r: &mut [T],
+    a: &[T],
+    s: &[T],
+    part: &mut [T],
+    i: usize,
+    damping: T,
+    keep: T,
+) {
+    let (best, best_at, second) = top_two(a, s);
     let at_best = r[best_at] * damping + (s[best_at] - second) * keep;
     for (rv, &sv) in r.iter_mut().zip(s) {
         *rv = *rv * damping + (sv - best) * keep;
     }
     r[best_at] = at_best;
-}
-
-fn accumulate_positive<T: ApFloat>(part: &mut [T], r_row: &[T], i: usize) {
-    for (p, &rv) in part.iter_mut().zip(r_row) {
-        let pos = if rv > T::ZERO { rv } else { T::ZERO };
-        *p = *p + pos;
+    for (p, &rv) in part.iter_mut().zip(r.iter()) {
+        *p = *p + fmax(rv, T::ZERO);
     }
     // The diagonal enters with its sign (scikit-learn: Rp's diagonal = R's diagonal).
-    let rv = r_row[i];
-    if rv <= T::ZERO {
-        part[i] = part[i] + rv;
+    let rii = r[i];
+    if rii <= T::ZERO {
+        part[i] = part[i] + rii;
     }
 }
 

@@ -114,7 +114,7 @@ pub fn weights_of(neighbours: &[(usize, f64)], weighting: Weighting) -> Vec<f64>
         Weighting::InverseDistance { power } => {
             let zeros = neighbours
                 .iter()
-                .filter(|(_, d)| !(*d > ZERO_DISTANCE))
+                .filter(|(_, d)| d.is_nan() || *d <= ZERO_DISTANCE)
                 .count();
             if zeros > 0 {
                 return neighbours

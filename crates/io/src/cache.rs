@@ -12,8 +12,8 @@
 //! [`DEFAULT_CACHE_DIR`] is the documented default (relative to the working directory, i.e.
 //! the workspace's `target/` when run with cargo). Never put it inside `../shared`.
 
-use crate::floor::{self, FloorData, ReadOptions};
 use crate::IoError;
+use crate::floor::{self, FloorData, ReadOptions};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -58,9 +58,9 @@ fn stamp(path: &Path) -> Result<SourceStamp, IoError> {
     let modified_ns = meta
         .modified()
         .ok()
-        .and_then(|m| match m.duration_since(UNIX_EPOCH) {
-            Ok(d) => Some(d.as_nanos() as i128),
-            Err(e) => Some(-(e.duration().as_nanos() as i128)),
+        .map(|m| match m.duration_since(UNIX_EPOCH) {
+            Ok(d) => d.as_nanos() as i128,
+            Err(e) => -(e.duration().as_nanos() as i128),
         })
         .unwrap_or(0);
     Ok(SourceStamp {
@@ -118,14 +118,16 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
     let (len_bytes, rest) = rest.split_at_checked(8)?;
     let key_len = usize::try_from(u64::from_le_bytes(len_bytes.try_into().ok()?)).ok()?;
     let (key_bytes, body) = rest.split_at_checked(key_len)?;
-    let (stored, _): (CacheKey, usize) =
-        match bincode::serde::decode_from_slice(key_bytes, config()) {
-            Ok(k) => k,
-            Err(e) => {
-                tracing::warn!(file = %file.display(), error = %e, "unreadable cache key, re-reading");
-                return None;
-            }
-        };
+    let (stored, _): (CacheKey, usize) = match bincode::serde::decode_from_slice(
+        key_bytes,
+        config(),
+    ) {
+        Ok(k) => k,
+        Err(e) => {
+            tracing::warn!(file = %file.display(), error = %e, "unreadable cache key, re-reading");
+            return None;
+        }
+    };
     if &stored != key {
         tracing::info!(file = %file.display(), "cache is stale, re-reading the floor");
         return None;

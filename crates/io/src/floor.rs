@@ -80,7 +80,11 @@ pub fn read_floor_info(path: impl AsRef<Path>, limits: &Limits) -> Result<(f64, 
             .ok_or_else(|| IoError::invalid(path, &field, "missing"))?;
         match v.as_f64() {
             Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-            _ => Err(IoError::invalid(path, &field, format!("expected a positive number, found {v}"))),
+            _ => Err(IoError::invalid(
+                path,
+                &field,
+                format!("expected a positive number, found {v}"),
+            )),
         }
     };
     Ok((get("width")?, get("height")?))
@@ -105,12 +109,19 @@ pub fn write_floor_info(path: impl AsRef<Path>, width: f64, height: f64) -> Resu
 pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
     let dir = dir.as_ref();
     let walks = dir.join(WALKS_DIR);
-    let walks = if walks.is_dir() { walks } else { dir.to_path_buf() };
+    let walks = if walks.is_dir() {
+        walks
+    } else {
+        dir.to_path_buf()
+    };
     let entries = std::fs::read_dir(&walks).map_err(|e| IoError::file(&walks, e))?;
     let mut files = Vec::new();
     for entry in entries {
         let path = entry.map_err(|e| IoError::file(&walks, e))?.path();
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         if (name.ends_with(".txt") || name.ends_with(".txt.gz")) && path.is_file() {
             files.push(path);
         }
@@ -143,7 +154,10 @@ pub fn read_floor_dir_with_progress(
         if !needed.is_file() {
             return Err(IoError::NotAFloor {
                 path: dir.to_path_buf(),
-                message: format!("no {}", needed.file_name().unwrap_or_default().to_string_lossy()),
+                message: format!(
+                    "no {}",
+                    needed.file_name().unwrap_or_default().to_string_lossy()
+                ),
             });
         }
     }

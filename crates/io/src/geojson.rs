@@ -135,7 +135,12 @@ fn parse_ring(
         .collect()
 }
 
-fn parse_polygon(v: &Value, path: &Path, field: &str, budget: &mut Budget) -> Result<Rings, IoError> {
+fn parse_polygon(
+    v: &Value,
+    path: &Path,
+    field: &str,
+    budget: &mut Budget,
+) -> Result<Rings, IoError> {
     let arr = v
         .as_array()
         .ok_or_else(|| IoError::invalid(path, field, "expected an array of rings"))?;
@@ -213,12 +218,21 @@ pub fn plan_from_geojson(
         vertices_left: limits.max_geojson_vertices,
         limit: limits.max_geojson_vertices,
     };
-    let first = features
-        .first()
-        .ok_or_else(|| IoError::invalid(path, "features", "no features (the first must be the floor outline)"))?;
-    let outline_polys = parse_geometry(first, path, "features[0]", &mut budget)?.ok_or_else(|| {
-        IoError::invalid(path, "features[0].geometry", "the floor outline must be a Polygon or MultiPolygon")
+    let first = features.first().ok_or_else(|| {
+        IoError::invalid(
+            path,
+            "features",
+            "no features (the first must be the floor outline)",
+        )
     })?;
+    let outline_polys =
+        parse_geometry(first, path, "features[0]", &mut budget)?.ok_or_else(|| {
+            IoError::invalid(
+                path,
+                "features[0].geometry",
+                "the floor outline must be a Polygon or MultiPolygon",
+            )
+        })?;
     let mut bbox = LonLatBox {
         min_lon: f64::INFINITY,
         min_lat: f64::INFINITY,
@@ -324,9 +338,8 @@ pub fn write_floor_plan(
 ) -> Result<(), IoError> {
     let path = path.as_ref();
     let value = floor_plan_to_geojson(plan, lonlat_box)?;
-    let mut file = std::io::BufWriter::new(
-        std::fs::File::create(path).map_err(|e| IoError::file(path, e))?,
-    );
+    let mut file =
+        std::io::BufWriter::new(std::fs::File::create(path).map_err(|e| IoError::file(path, e))?);
     serde_json::to_writer(&mut file, &value).map_err(|e| IoError::file(path, e.into()))?;
     file.flush().map_err(|e| IoError::file(path, e))
 }
@@ -339,7 +352,8 @@ pub fn floor_plan_to_geojson(plan: &FloorPlan, lonlat_box: LonLatBox) -> Result<
             message: format!("degenerate or non-finite box {lonlat_box:?}"),
         });
     }
-    if !(plan.width > 0.0 && plan.height > 0.0 && plan.width.is_finite() && plan.height.is_finite()) {
+    if !(plan.width > 0.0 && plan.height > 0.0 && plan.width.is_finite() && plan.height.is_finite())
+    {
         return Err(IoError::Unwritable {
             field: "plan.width/height".into(),
             message: format!("invalid floor size {} x {}", plan.width, plan.height),
@@ -373,7 +387,12 @@ pub fn floor_plan_to_geojson(plan: &FloorPlan, lonlat_box: LonLatBox) -> Result<
         {
             tracing::warn!(
                 "floor outline spans ({:.3}, {:.3})-({:.3}, {:.3}), not [0, {}] x [0, {}]: the reader's transform will not give the same coordinates back",
-                lo.x, lo.y, hi.x, hi.y, plan.width, plan.height
+                lo.x,
+                lo.y,
+                hi.x,
+                hi.y,
+                plan.width,
+                plan.height
             );
         }
     }
@@ -476,9 +495,18 @@ mod tests {
         let cases = [
             (json!({}), "features"),
             (json!({"features": []}), "features"),
-            (json!({"features": [{"geometry": {"type": "Point", "coordinates": [1, 2]}}]}), "features[0].geometry"),
-            (json!({"features": [{"geometry": {"type": "Polygon", "coordinates": [[[1, 2], [1, "x"], [3, 3]]]}}]}), "features[0].geometry.coordinates[0][1]"),
-            (json!({"features": [{"geometry": {"type": "Polygon", "coordinates": [[[1, 2], [1, 2], [1, 2]]]}}]}), "features[0].geometry.coordinates"),
+            (
+                json!({"features": [{"geometry": {"type": "Point", "coordinates": [1, 2]}}]}),
+                "features[0].geometry",
+            ),
+            (
+                json!({"features": [{"geometry": {"type": "Polygon", "coordinates": [[[1, 2], [1, "x"], [3, 3]]]}}]}),
+                "features[0].geometry.coordinates[0][1]",
+            ),
+            (
+                json!({"features": [{"geometry": {"type": "Polygon", "coordinates": [[[1, 2], [1, 2], [1, 2]]]}}]}),
+                "features[0].geometry.coordinates",
+            ),
         ];
         for (v, field) in cases {
             match plan_from_geojson(&v, p, 10.0, 10.0, &limits) {

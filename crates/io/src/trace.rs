@@ -26,11 +26,11 @@ use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
-use wipdr_core::{
-    BeaconSample, Bssid, RotationVectorSample, UncalibratedSample, Vec3Sample, Walk, WifiEntry,
-    WifiScan, Waypoint,
-};
 use wipdr_core::walk::Record;
+use wipdr_core::{
+    BeaconSample, Bssid, RotationVectorSample, UncalibratedSample, Vec3Sample, Walk, Waypoint,
+    WifiEntry, WifiScan,
+};
 
 /// Why a line was skipped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -454,7 +454,8 @@ impl<'l> Parser<'l> {
             Ok(true) => {
                 if t < self.max_time {
                     self.report.out_of_order += 1;
-                    self.report.max_lateness_ms = self.report.max_lateness_ms.max(self.max_time - t);
+                    self.report.max_lateness_ms =
+                        self.report.max_lateness_ms.max(self.max_time - t);
                 }
                 self.max_time = self.max_time.max(t);
                 // Counting per type by name: a small fixed set of keys.
@@ -886,10 +887,9 @@ pub fn write_walk_file(walk: &Walk, path: impl AsRef<Path>) -> Result<(), IoErro
     let file = File::create(path).map_err(to_err)?;
     let gz = path.extension().is_some_and(|e| e == "gz");
     if gz {
-        let mut enc = flate2::GzBuilder::new().mtime(0).write(
-            BufWriter::new(file),
-            flate2::Compression::default(),
-        );
+        let mut enc = flate2::GzBuilder::new()
+            .mtime(0)
+            .write(BufWriter::new(file), flate2::Compression::default());
         write_walk(walk, &mut enc).map_err(to_err)?;
         enc.finish().map_err(to_err)?.flush().map_err(to_err)?;
     } else {
@@ -954,7 +954,10 @@ mod tests {
         assert_eq!(r.unknown_types["TYPE_DIST1"], 1);
         assert_eq!(r.records["TYPE_WIFI"], 3);
         assert_eq!(r.records["TYPE_ACCELEROMETER"], 2);
-        assert_eq!(r.out_of_order, 4, "accelerometer, beacon, gyroscope and waypoint written late");
+        assert_eq!(
+            r.out_of_order, 4,
+            "accelerometer, beacon, gyroscope and waypoint written late"
+        );
         assert_eq!(r.max_lateness_ms, 1574559525978 - 1574559495263);
         assert_eq!(r.run_on_lines_split, 0);
     }
@@ -1010,10 +1013,23 @@ abc\tTYPE_WAYPOINT\t1.0\t2.0\n\
         };
         let long = format!("1\tTYPE_WAYPOINT\t{}\t1\n", "1".repeat(200));
         let e = read_walk_from(long.as_bytes(), "x", &limits).unwrap_err();
-        assert!(matches!(e, IoError::LineTooLong { line: 1, limit: 100, .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                IoError::LineTooLong {
+                    line: 1,
+                    limit: 100,
+                    ..
+                }
+            ),
+            "{e}"
+        );
         let scan = "5\tTYPE_WIFI\ta\t00:00:00:00:00:01\t-1\t1\t1\n".repeat(3);
         let e = read_walk_from(scan.as_bytes(), "x", &limits).unwrap_err();
-        assert!(matches!(e, IoError::ScanTooLarge { line: 3, t: 5, .. }), "{e}");
+        assert!(
+            matches!(e, IoError::ScanTooLarge { line: 3, t: 5, .. }),
+            "{e}"
+        );
         let many = "5\tTYPE_WAYPOINT\t1\t1\n".repeat(6);
         let e = read_walk_from(many.as_bytes(), "x", &limits).unwrap_err();
         assert!(matches!(e, IoError::TooManyRecords { line: 6, .. }), "{e}");

@@ -67,8 +67,15 @@ fn a_gzip_stream_that_inflates_without_end() {
     };
     let mut endless = Endless::new(member);
     let e = read_walk_from(&mut endless, "bomb.txt.gz", &limits).unwrap_err();
-    assert!(matches!(e, IoError::InputTooLarge { limit, .. } if limit == 8 << 20), "{e}");
-    assert!(endless.served < 1 << 20, "read {} compressed bytes", endless.served);
+    assert!(
+        matches!(e, IoError::InputTooLarge { limit, .. } if limit == 8 << 20),
+        "{e}"
+    );
+    assert!(
+        endless.served < 1 << 20,
+        "read {} compressed bytes",
+        endless.served
+    );
 }
 
 #[test]
@@ -104,7 +111,14 @@ fn a_scan_claiming_millions_of_entries() {
     };
     let e = read_walk_from(&mut scan, "scan", &Limits::default()).unwrap_err();
     assert!(
-        matches!(e, IoError::ScanTooLarge { line: 8193, limit: 8192, .. }),
+        matches!(
+            e,
+            IoError::ScanTooLarge {
+                line: 8193,
+                limit: 8192,
+                ..
+            }
+        ),
         "{e}"
     );
     assert!(scan.i < 20_000, "generated {} lines", scan.i);
@@ -116,9 +130,13 @@ fn too_many_records() {
         max_records: 10_000,
         ..Limits::default()
     };
-    let mut endless = Endless::new(b"1574559495421\tTYPE_BLUE\t\t16:E5:41:F6:CC:67\t-95\n".to_vec());
+    let mut endless =
+        Endless::new(b"1574559495421\tTYPE_BLUE\t\t16:E5:41:F6:CC:67\t-95\n".to_vec());
     let e = read_walk_from(&mut endless, "many", &limits).unwrap_err();
-    assert!(matches!(e, IoError::TooManyRecords { line: 10_001, .. }), "{e}");
+    assert!(
+        matches!(e, IoError::TooManyRecords { line: 10_001, .. }),
+        "{e}"
+    );
 }
 
 #[test]
@@ -131,7 +149,10 @@ fn a_geojson_of_absurd_size() {
         .set_len(65 << 20)
         .unwrap();
     let e = read_floor_plan(&big, 10.0, 10.0, &Limits::default()).unwrap_err();
-    assert!(matches!(e, IoError::InputTooLarge { limit, .. } if limit == 64 << 20), "{e}");
+    assert!(
+        matches!(e, IoError::InputTooLarge { limit, .. } if limit == 64 << 20),
+        "{e}"
+    );
     assert!(e.to_string().contains("geojson_map.json"), "{e}");
 
     // Too many vertices for the configured limit.
@@ -161,7 +182,10 @@ fn a_geojson_of_absurd_size() {
         ..Limits::default()
     };
     let e = read_floor_plan(&big, 10.0, 10.0, &limits).unwrap_err();
-    assert!(matches!(&e, IoError::Invalid { field, .. } if field == "features"), "{e}");
+    assert!(
+        matches!(&e, IoError::Invalid { field, .. } if field == "features"),
+        "{e}"
+    );
 
     // Absurd nesting: serde_json's recursion limit gives a syntax error, not a stack overflow.
     std::fs::write(&big, "[".repeat(100_000)).unwrap();

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use wipdr_core::{
     BeaconSample, Bssid, Point2, RotationVectorSample, UncalibratedSample, Vec3Sample, Walk,
-    WalkMeta, WifiEntry, WifiScan, Waypoint,
+    WalkMeta, Waypoint, WifiEntry, WifiScan,
 };
 use wipdr_io::trace::{read_walk_from, write_walk};
 use wipdr_io::{IoError, Limits};
@@ -39,14 +39,18 @@ fn vec3() -> impl Strategy<Value = Vec3Sample> {
 }
 
 fn uncal() -> impl Strategy<Value = UncalibratedSample> {
-    (time(), [finite(), finite(), finite()], [finite(), finite(), finite()], any::<i8>()).prop_map(
-        |(t, v, bias, accuracy)| UncalibratedSample {
+    (
+        time(),
+        [finite(), finite(), finite()],
+        [finite(), finite(), finite()],
+        any::<i8>(),
+    )
+        .prop_map(|(t, v, bias, accuracy)| UncalibratedSample {
             t,
             v,
             bias,
             accuracy,
-        },
-    )
+        })
 }
 
 fn scans() -> impl Strategy<Value = Vec<WifiScan>> {
@@ -61,13 +65,15 @@ fn scans() -> impl Strategy<Value = Vec<WifiScan>> {
                         entries: entries
                             .into_iter()
                             .filter(|e| seen.insert(e.0))
-                            .map(|(b, ssid, rssi_dbm, frequency_mhz, last_seen_ms)| WifiEntry {
-                                bssid: Bssid(b),
-                                ssid,
-                                rssi_dbm,
-                                frequency_mhz,
-                                last_seen_ms,
-                            })
+                            .map(
+                                |(b, ssid, rssi_dbm, frequency_mhz, last_seen_ms)| WifiEntry {
+                                    bssid: Bssid(b),
+                                    ssid,
+                                    rssi_dbm,
+                                    frequency_mhz,
+                                    last_seen_ms,
+                                },
+                            )
                             .collect(),
                     }
                 })
@@ -84,19 +90,21 @@ fn beacon() -> impl Strategy<Value = BeaconSample> {
         "[0-9A-F:]{0,17}",
         time(),
     )
-        .prop_map(|(t, (uuid, major, minor), (tx_power, rssi_dbm, distance), mac, seen_ms)| {
-            BeaconSample {
-                t,
-                uuid,
-                major,
-                minor,
-                tx_power,
-                rssi_dbm,
-                distance,
-                mac,
-                seen_ms,
-            }
-        })
+        .prop_map(
+            |(t, (uuid, major, minor), (tx_power, rssi_dbm, distance), mac, seen_ms)| {
+                BeaconSample {
+                    t,
+                    uuid,
+                    major,
+                    minor,
+                    tx_power,
+                    rssi_dbm,
+                    distance,
+                    mac,
+                    seen_ms,
+                }
+            },
+        )
 }
 
 fn meta() -> impl Strategy<Value = WalkMeta> {
@@ -133,39 +141,38 @@ fn walk() -> impl Strategy<Value = Walk> {
         scans(),
         prop::collection::vec(beacon(), 0..3),
         (v(vec3(), 0..6), v(vec3(), 0..6), v(vec3(), 0..6)),
-        prop::collection::vec(
-            (time(), [finite(), finite(), finite()], any::<i8>()),
-            0..6,
-        ),
+        prop::collection::vec((time(), [finite(), finite(), finite()], any::<i8>()), 0..6),
         (v(uncal(), 0..6), v(uncal(), 0..6), v(uncal(), 0..6)),
     )
-        .prop_map(|(meta, wps, wifi, beacons, (acc, gyr, mag), rot, (ua, ug, um))| {
-            let mut w = Walk {
-                meta,
-                waypoints: wps
+        .prop_map(
+            |(meta, wps, wifi, beacons, (acc, gyr, mag), rot, (ua, ug, um))| {
+                let mut w = Walk {
+                    meta,
+                    waypoints: wps
+                        .into_iter()
+                        .map(|(t, x, y)| Waypoint {
+                            t,
+                            position: Point2::new(x, y),
+                        })
+                        .collect(),
+                    wifi,
+                    beacons,
+                    imu: Default::default(),
+                };
+                w.imu.accelerometer = acc;
+                w.imu.gyroscope = gyr;
+                w.imu.magnetometer = mag;
+                w.imu.rotation_vector = rot
                     .into_iter()
-                    .map(|(t, x, y)| Waypoint {
-                        t,
-                        position: Point2::new(x, y),
-                    })
-                    .collect(),
-                wifi,
-                beacons,
-                imu: Default::default(),
-            };
-            w.imu.accelerometer = acc;
-            w.imu.gyroscope = gyr;
-            w.imu.magnetometer = mag;
-            w.imu.rotation_vector = rot
-                .into_iter()
-                .map(|(t, v, accuracy)| RotationVectorSample { t, v, accuracy })
-                .collect();
-            w.imu.accelerometer_uncalibrated = ua;
-            w.imu.gyroscope_uncalibrated = ug;
-            w.imu.magnetometer_uncalibrated = um;
-            w.sort_streams();
-            w
-        })
+                    .map(|(t, v, accuracy)| RotationVectorSample { t, v, accuracy })
+                    .collect();
+                w.imu.accelerometer_uncalibrated = ua;
+                w.imu.gyroscope_uncalibrated = ug;
+                w.imu.magnetometer_uncalibrated = um;
+                w.sort_streams();
+                w
+            },
+        )
 }
 
 fn written(w: &Walk) -> Vec<u8> {
@@ -194,8 +201,17 @@ fn read_any(bytes: &[u8]) {
             assert!(w.waypoints.windows(2).all(|a| a[0].t <= a[1].t));
             assert!(w.wifi.windows(2).all(|a| a[0].t <= a[1].t));
             assert!(w.imu.accelerometer.windows(2).all(|a| a[0].t <= a[1].t));
-            assert!(w.waypoints.iter().all(|p| p.position.x.is_finite() && p.position.y.is_finite()));
-            assert!(w.wifi.iter().flat_map(|s| &s.entries).all(|e| e.rssi_dbm.is_finite()));
+            assert!(
+                w.waypoints
+                    .iter()
+                    .all(|p| p.position.x.is_finite() && p.position.y.is_finite())
+            );
+            assert!(
+                w.wifi
+                    .iter()
+                    .flat_map(|s| &s.entries)
+                    .all(|e| e.rssi_dbm.is_finite())
+            );
             assert!(p.report.lines <= bytes.len() + 1);
         }
         Err(e) => assert!(e.to_string().starts_with("input"), "{e}"),

@@ -8,11 +8,17 @@ use wipdr_io::trace::SkipKind;
 const FLOORS: [&str; 5] = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"];
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/ilc20"));
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ilc20"
+    ));
     if dir.is_dir() {
         Some(dir)
     } else {
-        println!("skipped: real data not found at {} (see ../shared/data/README.md)", dir.display());
+        println!(
+            "skipped: real data not found at {} (see ../shared/data/README.md)",
+            dir.display()
+        );
         None
     }
 }
@@ -39,11 +45,23 @@ fn every_walk_of_the_five_floors() {
         let floor = read_floor_dir(root.join(name), &ReadOptions::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(floor.name, name);
-        assert!(floor.width > 100.0 && floor.height > 100.0, "{name}: {} x {}", floor.width, floor.height);
-        assert!(floor.plan.units.len() > 50, "{name}: {} units", floor.plan.units.len());
+        assert!(
+            floor.width > 100.0 && floor.height > 100.0,
+            "{name}: {} x {}",
+            floor.width,
+            floor.height
+        );
+        assert!(
+            floor.plan.units.len() > 50,
+            "{name}: {} units",
+            floor.plan.units.len()
+        );
         // The outline's bounding box is the whole floor after the transform.
         let (lo, hi) = floor.plan.outline.iter().map(|p| p.bbox()).fold(
-            (wipdr_core::Point2::new(f64::MAX, f64::MAX), wipdr_core::Point2::new(f64::MIN, f64::MIN)),
+            (
+                wipdr_core::Point2::new(f64::MAX, f64::MAX),
+                wipdr_core::Point2::new(f64::MIN, f64::MIN),
+            ),
             |(lo, hi), (l, h)| {
                 (
                     wipdr_core::Point2::new(lo.x.min(l.x), lo.y.min(l.y)),
@@ -52,14 +70,30 @@ fn every_walk_of_the_five_floors() {
             },
         );
         assert!(lo.x.abs() < 1e-6 && lo.y.abs() < 1e-6, "{name}: {lo}");
-        assert!((hi.x - floor.width).abs() < 1e-6 && (hi.y - floor.height).abs() < 1e-6, "{name}: {hi}");
-        assert!(floor.walks.windows(2).all(|w| w[0].walk.meta.id < w[1].walk.meta.id));
+        assert!(
+            (hi.x - floor.width).abs() < 1e-6 && (hi.y - floor.height).abs() < 1e-6,
+            "{name}: {hi}"
+        );
+        assert!(
+            floor
+                .walks
+                .windows(2)
+                .all(|w| w[0].walk.meta.id < w[1].walk.meta.id)
+        );
         let floor_name = name.split('/').nth(1).unwrap();
         for p in &floor.walks {
             let w = &p.walk;
             let id = &w.meta.id;
-            assert!(w.waypoints.len() >= 2, "{name}/{id}: {} waypoints", w.waypoints.len());
-            assert_eq!(w.meta.floor_name.as_deref(), Some(floor_name), "{name}/{id}");
+            assert!(
+                w.waypoints.len() >= 2,
+                "{name}/{id}: {} waypoints",
+                w.waypoints.len()
+            );
+            assert_eq!(
+                w.meta.floor_name.as_deref(),
+                Some(floor_name),
+                "{name}/{id}"
+            );
             assert!(w.meta.start_time.is_some(), "{name}/{id}: no startTime");
             assert!(is_sorted(&w.waypoints, |r| r.t), "{name}/{id}");
             assert!(is_sorted(&w.wifi, |r| r.t), "{name}/{id}");
@@ -76,14 +110,25 @@ fn every_walk_of_the_five_floors() {
             ] {
                 assert!(is_sorted(s, |r| r.t), "{name}/{id}");
             }
-            assert!(!imu.accelerometer.is_empty(), "{name}/{id}: no accelerometer");
+            assert!(
+                !imu.accelerometer.is_empty(),
+                "{name}/{id}: no accelerometer"
+            );
             let replay = w.replay();
-            assert!(replay.windows(2).all(|r| r[0].t() <= r[1].t()), "{name}/{id}");
+            assert!(
+                replay.windows(2).all(|r| r[0].t() <= r[1].t()),
+                "{name}/{id}"
+            );
             for scan in &w.wifi {
                 let mut b: Vec<_> = scan.entries.iter().map(|e| e.bssid).collect();
                 b.sort();
                 b.dedup();
-                assert_eq!(b.len(), scan.entries.len(), "{name}/{id}: duplicate BSSID at {}", scan.t);
+                assert_eq!(
+                    b.len(),
+                    scan.entries.len(),
+                    "{name}/{id}: duplicate BSSID at {}",
+                    scan.t
+                );
             }
             if w.wifi.is_empty() {
                 walks_without_wifi += 1;
@@ -99,7 +144,12 @@ fn every_walk_of_the_five_floors() {
                 SkipKind::BadBssid,
                 SkipKind::BadHeader,
             ] {
-                assert_eq!(r.skipped_of(kind), 0, "{name}/{id}: {kind:?} {:?}", r.skipped.get(&kind));
+                assert_eq!(
+                    r.skipped_of(kind),
+                    0,
+                    "{name}/{id}: {kind:?} {:?}",
+                    r.skipped.get(&kind)
+                );
             }
             assert_eq!(r.run_on_lines_split, 0, "{name}/{id}");
             if let Some(s) = r.skipped.get(&SkipKind::UnknownType) {
@@ -131,12 +181,23 @@ fn every_walk_of_the_five_floors() {
     assert_eq!(waypoints, 2612);
     assert_eq!(wifi_lines, 1_770_817);
     assert_eq!(accel, 665_926);
-    assert_eq!(unknown, 2 * 303_014 + 3 * 370, "TYPE_BLUE, TYPE_BLU4, TYPE_DIST1/2, accuracy changes");
+    assert_eq!(
+        unknown,
+        2 * 303_014 + 3 * 370,
+        "TYPE_BLUE, TYPE_BLU4, TYPE_DIST1/2, accuracy changes"
+    );
     // `zcat ... | grep TYPE_BEACON | grep -ciE '\t-?infinity\t|\tnan\t'` = 341.
     assert_eq!(bad_numbers, 341, "beacon lines with an infinite distance");
     // `awk -F'\t' '$2=="TYPE_WIFI"{k=$1" "$4; if(k in s) d++; s[k]=1} END{print d}'` = 12374.
     assert_eq!(duplicates, 12_374);
-    assert!(out_of_order > 0 && max_lateness_ms > 10_000, "waypoints are written up to 11 s late");
+    assert!(
+        out_of_order > 0 && max_lateness_ms > 10_000,
+        "waypoints are written up to 11 s late"
+    );
     let share = inside as f64 / waypoints as f64;
-    assert!(share >= 0.99, "only {:.2} % of the waypoints inside the outline", share * 100.0);
+    assert!(
+        share >= 0.99,
+        "only {:.2} % of the waypoints inside the outline",
+        share * 100.0
+    );
 }

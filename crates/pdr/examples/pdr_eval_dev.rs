@@ -5,7 +5,7 @@ mod plotting;
 #[path = "../../../tools/src/progress.rs"]
 mod progress;
 mod cmd {
-    #[path = "../../../../tools/src/cmd/pdr_eval.rs"]
+    #[path = "/work/main/tools/src/cmd/pdr_eval.rs"]
     pub mod pdr_eval;
 }
 use clap::Parser;

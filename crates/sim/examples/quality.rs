@@ -20,11 +20,15 @@ fn main() {
     let seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
     let walks: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(10);
     let mut cfg: SimConfig = match args.next() {
-        Some(path) => toml::from_str(&std::fs::read_to_string(path).expect("read config")).expect("parse config"),
+        Some(path) => toml::from_str(&std::fs::read_to_string(path).expect("read config"))
+            .expect("parse config"),
         None => SimConfig::default(),
     };
     cfg.walks = walks;
-    let max_age_ms: i64 = std::env::var("MAX_AGE_MS").ok().and_then(|s| s.parse().ok()).unwrap_or(i64::MAX);
+    let max_age_ms: i64 = std::env::var("MAX_AGE_MS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(i64::MAX);
     cfg.gross_error_rate = 0.05;
     let sim = generate(&cfg, seed).expect("generate");
     let bssids = &sim.survey.bssids;
@@ -33,12 +37,26 @@ fn main() {
         .survey
         .train
         .iter()
-        .map(|p| (p.position, p.rss.iter().map(|v| v.unwrap_or(fill)).collect()))
+        .map(|p| {
+            (
+                p.position,
+                p.rss.iter().map(|v| v.unwrap_or(fill)).collect(),
+            )
+        })
         .collect();
     let wknn = |q: &[f64]| {
         let mut d: Vec<(f64, wipdr_core::Point2)> = train
             .iter()
-            .map(|(p, f)| (f.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt(), *p))
+            .map(|(p, f)| {
+                (
+                    f.iter()
+                        .zip(q)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum::<f64>()
+                        .sqrt(),
+                    *p,
+                )
+            })
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
@@ -50,21 +68,33 @@ fn main() {
         }
         wipdr_core::Point2::new(sx / sw, sy / sw)
     };
-    let (mut normal, mut gross, mut ages, mut counts) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut normal, mut gross, mut ages, mut counts) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut true_steps, mut detected_steps) = (0usize, 0usize);
     let mut end_drift = Vec::new();
     for w in &sim.walks {
         for scan in &w.walk.wifi {
             let mut q = vec![fill; bssids.len()];
-            for e in scan.entries.iter().filter(|e| e.age_ms(scan.t) <= max_age_ms) {
+            for e in scan
+                .entries
+                .iter()
+                .filter(|e| e.age_ms(scan.t) <= max_age_ms)
+            {
                 ages.push(e.age_ms(scan.t) as f64 / 1000.0);
-                if let Ok(j) = bssids.binary_search(&e.bssid).or_else(|_| bssids.iter().position(|b| *b == e.bssid).ok_or(())) {
+                if let Ok(j) = bssids
+                    .binary_search(&e.bssid)
+                    .or_else(|_| bssids.iter().position(|b| *b == e.bssid).ok_or(()))
+                {
                     q[j] = e.rssi_dbm;
                 }
             }
             counts.push(scan.entries.len() as f64);
             let err = (wknn(&q) - w.truth.position_at(scan.t).unwrap()).norm();
-            if w.truth.is_gross_error(scan.t) { gross.push(err) } else { normal.push(err) }
+            if w.truth.is_gross_error(scan.t) {
+                gross.push(err)
+            } else {
+                normal.push(err)
+            }
         }
         // Naive steps: peaks of the smoothed acceleration magnitude above g + 1.
         let acc = &w.walk.imu.accelerometer;
@@ -79,7 +109,11 @@ fn main() {
         let mut last = i64::MIN / 2;
         let mut steps_t = Vec::new();
         for i in 1..smooth.len().saturating_sub(1) {
-            if smooth[i] > 10.8 && smooth[i] >= smooth[i - 1] && smooth[i] > smooth[i + 1] && acc[i].t - last > 300 {
+            if smooth[i] > 10.8
+                && smooth[i] >= smooth[i - 1]
+                && smooth[i] > smooth[i + 1]
+                && acc[i].t - last > 300
+            {
                 steps_t.push(acc[i].t);
                 last = acc[i].t;
             }
@@ -99,12 +133,33 @@ fn main() {
         }
         end_drift.push((p - w.truth.position_at(w.truth.end_ms).unwrap()).norm());
     }
+    let mut turn_angles: Vec<f64> = sim.walks.iter().flat_map(|w| w.truth.turns.iter().map(|t| t.angle.abs().to_degrees())).collect();
+    let turn_count = turn_angles.len();
+    println!("turns: {turn_count}, |angle| min {:.0} deg, median {:.0}, max {:.0}", percentile(&mut turn_angles, 0.0), percentile(&mut turn_angles, 0.5), percentile(&mut turn_angles, 1.0));
     let n = normal.len();
     let mean = normal.iter().sum::<f64>() / n as f64;
-    println!("Wi-Fi WKNN (k = 5, all entries): {n} scans, mean {mean:.2} m, p50 {:.2}, p95 {:.2}", percentile(&mut normal, 0.5), percentile(&mut normal, 0.95));
-    println!("gross-error scans: {}, median error {:.1} m", gross.len(), percentile(&mut gross, 0.5));
+    println!(
+        "Wi-Fi WKNN (k = 5, all entries): {n} scans, mean {mean:.2} m, p50 {:.2}, p95 {:.2}",
+        percentile(&mut normal, 0.5),
+        percentile(&mut normal, 0.95)
+    );
+    println!(
+        "gross-error scans: {}, median error {:.1} m",
+        gross.len(),
+        percentile(&mut gross, 0.5)
+    );
     let over2 = ages.iter().filter(|&&a| a > 2.0).count() as f64 / ages.len() as f64;
-    println!("entries per scan: median {:.0}; entry age median {:.2} s, {:.0} % over 2 s, max {:.1} s", percentile(&mut counts, 0.5), percentile(&mut ages, 0.5), over2 * 100.0, percentile(&mut ages, 1.0));
+    println!(
+        "entries per scan: median {:.0}; entry age median {:.2} s, {:.0} % over 2 s, max {:.1} s",
+        percentile(&mut counts, 0.5),
+        percentile(&mut ages, 0.5),
+        over2 * 100.0,
+        percentile(&mut ages, 1.0)
+    );
     println!("steps: true {true_steps}, naive peak counter {detected_steps}");
-    println!("PDR with true step lengths and rotation-vector heading, end drift: median {:.2} m, max {:.2} m", percentile(&mut end_drift, 0.5), percentile(&mut end_drift, 1.0));
+    println!(
+        "PDR with true step lengths and rotation-vector heading, end drift: median {:.2} m, max {:.2} m",
+        percentile(&mut end_drift, 0.5),
+        percentile(&mut end_drift, 1.0)
+    );
 }

@@ -67,7 +67,8 @@ impl Default for SimConfig {
 impl SimConfig {
     /// Checks the values a generator divides by or samples from.
     pub fn validate(&self) -> Result<(), SimError> {
-        let bad = |field: &'static str, why: &'static str| Err(SimError::InvalidConfig { field, why });
+        let bad =
+            |field: &'static str, why: &'static str| Err(SimError::InvalidConfig { field, why });
         let positive = [
             ("duration_s", self.duration_s),
             ("trajectory_rate_hz", self.trajectory_rate_hz),
@@ -77,11 +78,20 @@ impl SimConfig {
             ("floor.corridor_width_m", self.floor.corridor_width_m),
             ("floor.shop_width_m", self.floor.shop_width_m),
             ("radio.path_loss_exponent", self.radio.path_loss_exponent),
-            ("radio.reference_distance_m", self.radio.reference_distance_m),
-            ("radio.shadowing_correlation_m", self.radio.shadowing_correlation_m),
+            (
+                "radio.reference_distance_m",
+                self.radio.reference_distance_m,
+            ),
+            (
+                "radio.shadowing_correlation_m",
+                self.radio.shadowing_correlation_m,
+            ),
             ("scan.interval_s", self.scan.interval_s),
             ("scan.detection_slope_db", self.scan.detection_slope_db),
-            ("walker.step_frequency_min_hz", self.walker.step_frequency_min_hz),
+            (
+                "walker.step_frequency_min_hz",
+                self.walker.step_frequency_min_hz,
+            ),
             ("walker.leg_length_min_m", self.walker.leg_length_min_m),
             ("imu.rate_hz", self.imu.rate_hz),
             ("survey.spacing_m", self.survey.spacing_m),
@@ -93,11 +103,23 @@ impl SimConfig {
         }
         let probabilities = [
             ("gross_error_rate", self.gross_error_rate),
-            ("radio.dual_band_probability", self.radio.dual_band_probability),
-            ("radio.multipath_probability", self.radio.multipath_probability),
+            (
+                "radio.dual_band_probability",
+                self.radio.dual_band_probability,
+            ),
+            (
+                "radio.multipath_probability",
+                self.radio.multipath_probability,
+            ),
             ("radio.shop_ap_fraction", self.radio.shop_ap_fraction),
-            ("scan.max_detection_probability", self.scan.max_detection_probability),
-            ("walker.static_start_probability", self.walker.static_start_probability),
+            (
+                "scan.max_detection_probability",
+                self.scan.max_detection_probability,
+            ),
+            (
+                "walker.static_start_probability",
+                self.walker.static_start_probability,
+            ),
             ("walker.stop_probability", self.walker.stop_probability),
             ("imu.drop_probability", self.imu.drop_probability),
         ];
@@ -110,13 +132,19 @@ impl SimConfig {
             return bad("duration_jitter_s", "must be in [0, duration_s)");
         }
         if self.walker.step_frequency_max_hz < self.walker.step_frequency_min_hz {
-            return bad("walker.step_frequency_max_hz", "must be >= step_frequency_min_hz");
+            return bad(
+                "walker.step_frequency_max_hz",
+                "must be >= step_frequency_min_hz",
+            );
         }
         if self.walker.leg_length_max_m < self.walker.leg_length_min_m {
             return bad("walker.leg_length_max_m", "must be >= leg_length_min_m");
         }
         if self.imu.timestamp_jitter_ms * 2.0 >= 1000.0 / self.imu.rate_hz {
-            return bad("imu.timestamp_jitter_ms", "must be under half the sample period");
+            return bad(
+                "imu.timestamp_jitter_ms",
+                "must be under half the sample period",
+            );
         }
         if self.radio.access_points == 0 {
             return bad("radio.access_points", "must be > 0");
@@ -481,7 +509,8 @@ mod tests {
     fn default_is_valid_and_toml_roundtrips() {
         let c = SimConfig::default();
         c.validate().unwrap();
-        let partial: SimConfig = toml::from_str("walks = 3\n[radio]\nwall_attenuation_db = 7.0\n").unwrap();
+        let partial: SimConfig =
+            toml::from_str("walks = 3\n[radio]\nwall_attenuation_db = 7.0\n").unwrap();
         assert_eq!(partial.walks, 3);
         assert_eq!(partial.radio.wall_attenuation_db, 7.0);
         assert_eq!(partial.radio.p0_dbm, c.radio.p0_dbm);
@@ -491,10 +520,24 @@ mod tests {
     fn invalid_values_are_named() {
         let mut c = SimConfig::default();
         c.scan.interval_s = 0.0;
-        assert!(matches!(c.validate(), Err(SimError::InvalidConfig { field: "scan.interval_s", .. })));
-        let mut c = SimConfig::default();
-        c.gross_error_rate = 1.5;
-        assert!(matches!(c.validate(), Err(SimError::InvalidConfig { field: "gross_error_rate", .. })));
+        assert!(matches!(
+            c.validate(),
+            Err(SimError::InvalidConfig {
+                field: "scan.interval_s",
+                ..
+            })
+        ));
+        let c = SimConfig {
+            gross_error_rate: 1.5,
+            ..SimConfig::default()
+        };
+        assert!(matches!(
+            c.validate(),
+            Err(SimError::InvalidConfig {
+                field: "gross_error_rate",
+                ..
+            })
+        ));
         let mut c = SimConfig::default();
         c.imu.timestamp_jitter_ms = 15.0;
         assert!(c.validate().is_err());

@@ -97,10 +97,20 @@ impl SimFloorPlan {
         }
         let mut walkable = Vec::new();
         for &y in &ys {
-            walkable.push(Rect { x0: xs[0] - half, y0: y - half, x1: xs[2] + half, y1: y + half });
+            walkable.push(Rect {
+                x0: xs[0] - half,
+                y0: y - half,
+                x1: xs[2] + half,
+                y1: y + half,
+            });
         }
         for &x in &xs {
-            walkable.push(Rect { x0: x - half, y0: ys[0] - half, x1: x + half, y1: ys[2] + half });
+            walkable.push(Rect {
+                x0: x - half,
+                y0: ys[0] - half,
+                x1: x + half,
+                y1: ys[2] + half,
+            });
         }
         let hall = Rect {
             x0: w * hx0,
@@ -156,7 +166,11 @@ impl SimFloorPlan {
                             let r = Rect {
                                 x0: x0 + step * k as f64,
                                 y0,
-                                x1: if k + 1 == n { x1 } else { x0 + step * (k + 1) as f64 },
+                                x1: if k + 1 == n {
+                                    x1
+                                } else {
+                                    x0 + step * (k + 1) as f64
+                                },
                                 y1,
                             };
                             units.push(Unit {
@@ -169,7 +183,12 @@ impl SimFloorPlan {
                 }
             }
         }
-        let outline = Rect { x0: 0.0, y0: 0.0, x1: w, y1: h };
+        let outline = Rect {
+            x0: 0.0,
+            y0: 0.0,
+            x1: w,
+            y1: h,
+        };
         let plan = FloorPlan::new(w, h, vec![outline.polygon()], units)?;
         let unique_walls = merge_walls(&plan.walls);
         let graph = corridor_graph(&xs, &ys, &hall);
@@ -189,7 +208,10 @@ impl SimFloorPlan {
 
     /// Number of distinct walls crossed by the straight line `a -> b`.
     pub fn walls_crossed(&self, a: Point2, b: Point2) -> usize {
-        self.unique_walls.iter().filter(|w| w.intersects(a, b)).count()
+        self.unique_walls
+            .iter()
+            .filter(|w| w.intersects(a, b))
+            .count()
     }
 }
 
@@ -197,11 +219,19 @@ impl SimFloorPlan {
 /// keeping the first occurrence (deterministic).
 fn merge_walls(walls: &[Segment]) -> Vec<Segment> {
     let key = |s: &Segment| {
-        let (a, b) = if (s.a.x, s.a.y) <= (s.b.x, s.b.y) { (s.a, s.b) } else { (s.b, s.a) };
+        let (a, b) = if (s.a.x, s.a.y) <= (s.b.x, s.b.y) {
+            (s.a, s.b)
+        } else {
+            (s.b, s.a)
+        };
         [a.x.to_bits(), a.y.to_bits(), b.x.to_bits(), b.y.to_bits()]
     };
     let mut seen = std::collections::BTreeSet::new();
-    walls.iter().filter(|s| seen.insert(key(s))).copied().collect()
+    walls
+        .iter()
+        .filter(|s| seen.insert(key(s)))
+        .copied()
+        .collect()
 }
 
 fn corridor_graph(xs: &[f64; 3], ys: &[f64; 3], hall: &Rect) -> CorridorGraph {
@@ -293,6 +323,9 @@ mod tests {
         assert!(f.unique_walls.len() < f.plan.walls.len());
         // From a corridor through a row of shops to the outer wall crosses walls.
         assert!(f.walls_crossed(Point2::new(30.0, 15.0), Point2::new(30.0, 40.0)) >= 2);
-        assert_eq!(f.walls_crossed(Point2::new(10.0, 15.0), Point2::new(110.0, 15.0)), 0);
+        assert_eq!(
+            f.walls_crossed(Point2::new(10.0, 15.0), Point2::new(110.0, 15.0)),
+            0
+        );
     }
 }

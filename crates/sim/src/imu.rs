@@ -25,7 +25,9 @@ use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{PI, TAU};
-use wipdr_core::{ImuStreams, Point2, RotationVectorSample, TimestampMs, UncalibratedSample, Vec3Sample};
+use wipdr_core::{
+    ImuStreams, Point2, RotationVectorSample, TimestampMs, UncalibratedSample, Vec3Sample,
+};
 
 /// A local magnetic disturbance: a Gaussian bump of field around a point.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -39,7 +41,11 @@ pub struct MagDisturbance {
 }
 
 /// Draws disturbances at random points of random walls.
-pub fn mag_disturbances(cfg: &ImuConfig, floor: &SimFloorPlan, rng: &mut ChaCha8Rng) -> Vec<MagDisturbance> {
+pub fn mag_disturbances(
+    cfg: &ImuConfig,
+    floor: &SimFloorPlan,
+    rng: &mut ChaCha8Rng,
+) -> Vec<MagDisturbance> {
     if floor.unique_walls.is_empty() {
         return Vec::new();
     }
@@ -48,7 +54,11 @@ pub fn mag_disturbances(cfg: &ImuConfig, floor: &SimFloorPlan, rng: &mut ChaCha8
             let w = floor.unique_walls[rng.index(floor.unique_walls.len())];
             let centre = w.a + (w.b - w.a) * rng.uniform(0.0, 1.0);
             let dir = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-            let dir = if dir.norm() > 1e-9 { dir / dir.norm() } else { Vector3::z() };
+            let dir = if dir.norm() > 1e-9 {
+                dir / dir.norm()
+            } else {
+                Vector3::z()
+            };
             let m = rng.uniform(0.3, 1.0) * cfg.mag_disturbance_ut;
             MagDisturbance {
                 centre,
@@ -114,7 +124,9 @@ impl ImuScene<'_> {
         let k = self.timeline.at(t);
         let (_, psi) = self.path.at(k.s);
         let sway = if k.walking {
-            self.cfg.yaw_sway_deg.to_radians() * (PI * (k.step_index as f64 + k.phase)).sin() * k.ramp
+            self.cfg.yaw_sway_deg.to_radians()
+                * (PI * (k.step_index as f64 + k.phase)).sin()
+                * k.ramp
         } else {
             0.0
         };
@@ -128,7 +140,10 @@ impl ImuScene<'_> {
         let (bounce, sway) = if k.walking {
             (
                 self.cfg.pitch_bounce_deg.to_radians() * (TAU * k.phase).sin() * k.ramp,
-                self.cfg.yaw_sway_deg.to_radians() * 0.5 * (PI * (k.step_index as f64 + k.phase)).cos() * k.ramp,
+                self.cfg.yaw_sway_deg.to_radians()
+                    * 0.5
+                    * (PI * (k.step_index as f64 + k.phase)).cos()
+                    * k.ramp,
             )
         } else {
             (0.0, 0.0)
@@ -148,7 +163,8 @@ impl ImuScene<'_> {
         let w = TAU * k.step_frequency;
         let amp = 0.5 * k.bounce_m * w * w * k.ramp;
         let u = k.phase;
-        let vertical = amp * ((TAU * u).cos() + 4.0 * c.vertical_second_harmonic * (2.0 * TAU * u).cos());
+        let vertical =
+            amp * ((TAU * u).cos() + 4.0 * c.vertical_second_harmonic * (2.0 * TAU * u).cos());
         let forward = -c.forward_accel_ratio * amp * (TAU * u).sin();
         let lateral = c.lateral_sway_accel * k.ramp * (PI * (k.step_index as f64 + u)).sin();
         let centripetal = k.speed * k.speed * self.path.curvature(k.s);
@@ -194,20 +210,49 @@ impl ImuScene<'_> {
             let acc = [0, 1, 2].map(|a| quantise(f[a] + c.accel_noise * noise[a], c.accel_quantum));
             let inc = self.rotation(t - h, 0.0).transpose() * self.rotation(t + h, 0.0);
             let omega = inc.scaled_axis() / (2.0 * h);
-            let gyro = [0, 1, 2].map(|a| quantise(omega[a] + self.pose.gyro_bias[a] + c.gyro_noise * noise[3 + a], c.gyro_quantum));
+            let gyro = [0, 1, 2].map(|a| {
+                quantise(
+                    omega[a] + self.pose.gyro_bias[a] + c.gyro_noise * noise[3 + a],
+                    c.gyro_quantum,
+                )
+            });
             let (p, _) = self.path.at(self.timeline.at(t).s);
             let b = rt * (earth + local_field(self.disturbances, p));
             let mag = [0, 1, 2].map(|a| quantise(b[a] + c.mag_noise * noise[6 + a], c.mag_quantum));
-            let rv_noise = Rotation3::from_scaled_axis(Vector3::new(noise[9], noise[10], noise[11]) * c.rotation_vector_noise_deg.to_radians());
+            let rv_noise = Rotation3::from_scaled_axis(
+                Vector3::new(noise[9], noise[10], noise[11])
+                    * c.rotation_vector_noise_deg.to_radians(),
+            );
             let q = UnitQuaternion::from_rotation_matrix(&(self.rotation(t, yaw_error) * rv_noise));
             let s = if q.w < 0.0 { -1.0 } else { 1.0 };
             let rv = [q.i, q.j, q.k].map(|v| quantise(s * v, c.rotation_vector_quantum));
-            out.accelerometer.push(Vec3Sample { t: t_ms, v: acc, accuracy: 3 });
-            out.gyroscope.push(Vec3Sample { t: t_ms, v: gyro, accuracy: 3 });
-            out.magnetometer.push(Vec3Sample { t: t_ms, v: mag, accuracy: 3 });
-            out.rotation_vector.push(RotationVectorSample { t: t_ms, v: rv, accuracy: 3 });
+            out.accelerometer.push(Vec3Sample {
+                t: t_ms,
+                v: acc,
+                accuracy: 3,
+            });
+            out.gyroscope.push(Vec3Sample {
+                t: t_ms,
+                v: gyro,
+                accuracy: 3,
+            });
+            out.magnetometer.push(Vec3Sample {
+                t: t_ms,
+                v: mag,
+                accuracy: 3,
+            });
+            out.rotation_vector.push(RotationVectorSample {
+                t: t_ms,
+                v: rv,
+                accuracy: 3,
+            });
             if c.uncalibrated {
-                out.accelerometer_uncalibrated.push(UncalibratedSample { t: t_ms, v: acc, bias: [0.0; 3], accuracy: 3 });
+                out.accelerometer_uncalibrated.push(UncalibratedSample {
+                    t: t_ms,
+                    v: acc,
+                    bias: [0.0; 3],
+                    accuracy: 3,
+                });
                 out.gyroscope_uncalibrated.push(UncalibratedSample {
                     t: t_ms,
                     v: [0, 1, 2].map(|a| quantise(gyro[a] + gyro_est_bias[a], c.gyro_quantum)),
@@ -229,7 +274,7 @@ impl ImuScene<'_> {
 /// Rounds `v` to a multiple of `quantum`, dividing by the integer inverse when there is one so
 /// that decimal quanta print short (`0.123`, not `0.12300000000000001`).
 pub(crate) fn quantise(v: f64, quantum: f64) -> f64 {
-    if !(quantum > 0.0) || !v.is_finite() {
+    if quantum.is_nan() || quantum <= 0.0 || !v.is_finite() {
         return v;
     }
     let inv = 1.0 / quantum;

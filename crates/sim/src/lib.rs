@@ -158,7 +158,11 @@ pub fn generate(cfg: &SimConfig, seed: u64) -> Result<SimFloor, SimError> {
     let world = SimWorld::build(cfg, seed)?;
     let walks = (0..cfg.walks).map(|i| world.walk(i)).collect();
     let survey = world.survey();
-    Ok(SimFloor { world, walks, survey })
+    Ok(SimFloor {
+        world,
+        walks,
+        survey,
+    })
 }
 
 impl SimWorld {
@@ -186,25 +190,39 @@ impl SimWorld {
     /// The survey radio map (its own random stream).
     pub fn survey(&self) -> SurveyMap {
         let mut rng = rng::stream(self.seed, rng::STREAM_SURVEY);
-        SurveyMap::survey(&self.config.survey, &self.config.scan, &self.radio, &self.floor, &mut rng)
+        SurveyMap::survey(
+            &self.config.survey,
+            &self.config.scan,
+            &self.radio,
+            &self.floor,
+            &mut rng,
+        )
     }
 
     /// Generates walk `index` (its own random stream: independent of the other walks).
     pub fn walk(&self, index: usize) -> SimWalk {
         let cfg = &self.config;
         let mut rng = rng::stream(self.seed, rng::STREAM_WALK0 + index as u64);
-        let duration_s = cfg.duration_s + rng.uniform(-cfg.duration_jitter_s, cfg.duration_jitter_s);
+        let duration_s =
+            cfg.duration_s + rng.uniform(-cfg.duration_jitter_s, cfg.duration_jitter_s);
         let w = &cfg.walker;
         let params = WalkerParams {
             step_frequency_hz: rng.uniform(w.step_frequency_min_hz, w.step_frequency_max_hz),
             step_length_scale: rng.uniform(w.step_length_scale[0], w.step_length_scale[1]),
             leg_length_m: rng.uniform(w.leg_length_min_m, w.leg_length_max_m),
         };
-        let route = walker::random_route(&self.floor, &cfg.floor, w, duration_s * 2.5 + 20.0, &mut rng);
+        let route = walker::random_route(
+            &self.floor,
+            &cfg.floor,
+            w,
+            duration_s * 2.5 + 20.0,
+            &mut rng,
+        );
         let path = WalkPath::through(&route, cfg.floor.corner_cut_m);
         let timeline = Timeline::generate(&path, w, &params, duration_s, &mut rng);
         let pose = PhonePose::draw(&cfg.imu, &mut rng);
-        let start_ms = cfg.start_time_ms + (index as f64 * cfg.walk_spacing_s * 1000.0).round() as TimestampMs;
+        let start_ms =
+            cfg.start_time_ms + (index as f64 * cfg.walk_spacing_s * 1000.0).round() as TimestampMs;
         let to_ms = |t: f64| start_ms + (t * 1000.0).round() as TimestampMs;
         let end_ms = to_ms(duration_s);
 
@@ -262,7 +280,10 @@ impl SimWorld {
             .motions
             .iter()
             .filter_map(|m| match *m {
-                Motion::Stand { t0, t1, .. } => Some(StopTruth { t_start: to_ms(t0), t_end: to_ms(t1) }),
+                Motion::Stand { t0, t1, .. } => Some(StopTruth {
+                    t_start: to_ms(t0),
+                    t_end: to_ms(t1),
+                }),
                 Motion::Step { .. } => None,
             })
             .collect();
@@ -292,7 +313,10 @@ impl SimWorld {
                 GrossErrorTruth {
                     t: g.t,
                     true_position: Point2::new(round_to(tp.x, 1e4), round_to(tp.y, 1e4)),
-                    scan_position: Point2::new(round_to(g.position.x, 1e4), round_to(g.position.y, 1e4)),
+                    scan_position: Point2::new(
+                        round_to(g.position.x, 1e4),
+                        round_to(g.position.y, 1e4),
+                    ),
                 }
             })
             .collect();
@@ -326,7 +350,10 @@ impl SimWorld {
             let noise = w.waypoint_noise_m;
             waypoints.push(Waypoint {
                 t: t_ms,
-                position: Point2::new(round_to(p.x + noise * nx, 1e4), round_to(p.y + noise * ny, 1e4)),
+                position: Point2::new(
+                    round_to(p.x + noise * nx, 1e4),
+                    round_to(p.y + noise * ny, 1e4),
+                ),
             });
         }
 

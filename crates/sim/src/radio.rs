@@ -72,11 +72,17 @@ impl RadioModel {
                 let u = rng.index(units.len());
                 let (lo, hi) = units[u].polygon.bbox();
                 let m = 1.0_f64.min((hi.x - lo.x) / 4.0).min((hi.y - lo.y) / 4.0);
-                let p = Point2::new(rng.uniform(lo.x + m, hi.x - m), rng.uniform(lo.y + m, hi.y - m));
+                let p = Point2::new(
+                    rng.uniform(lo.x + m, hi.x - m),
+                    rng.uniform(lo.y + m, hi.y - m),
+                );
                 (p, format!("Shop-{:02}", u + 1))
             } else {
                 let r = floor.walkable[rng.index(floor.walkable.len())];
-                let p = Point2::new(rng.uniform(r.x0 + 0.5, r.x1 - 0.5), rng.uniform(r.y0 + 0.5, r.y1 - 0.5));
+                let p = Point2::new(
+                    rng.uniform(r.x0 + 0.5, r.x1 - 0.5),
+                    rng.uniform(r.y0 + 0.5, r.y1 - 0.5),
+                );
                 let name = SSIDS[rng.index(SSIDS.len())];
                 let ssid = if name.ends_with('-') {
                     format!("{name}{:04X}", rng.index(0x10000))
@@ -86,13 +92,18 @@ impl RadioModel {
                 (p, ssid)
             };
             // A locally administered unicast address: first byte 0x02.
-            let base = (0x02u64 << 40) | ((rng.index(1 << 20) as u64) << 20) | (site as u64 & 0xf_ffff);
+            let base =
+                (0x02u64 << 40) | ((rng.index(1 << 20) as u64) << 20) | (site as u64 & 0xf_ffff);
             let p0 = cfg.p0_dbm + cfg.p0_spread_db * rng.normal();
             let f24 = CHANNELS_24[rng.index(CHANNELS_24.len())];
             let mut radios = vec![(Bssid(base), f24, p0)];
             if rng.chance(cfg.dual_band_probability) {
                 let f5 = CHANNELS_5[rng.index(CHANNELS_5.len())];
-                radios.push((Bssid(base ^ (0x80 << 16)), f5, p0 - cfg.band_5ghz_extra_loss_db));
+                radios.push((
+                    Bssid(base ^ (0x80 << 16)),
+                    f5,
+                    p0 - cfg.band_5ghz_extra_loss_db,
+                ));
             }
             for (bssid, frequency_mhz, p0_dbm) in radios {
                 let shadowing = shadowing_field(cfg, rng);

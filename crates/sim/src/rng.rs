@@ -36,7 +36,11 @@ impl Draw for ChaCha8Rng {
         self.sample(StandardNormal)
     }
     fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        if hi > lo { lo + (hi - lo) * self.random::<f64>() } else { lo }
+        if hi > lo {
+            lo + (hi - lo) * self.random::<f64>()
+        } else {
+            lo
+        }
     }
     fn chance(&mut self, p: f64) -> bool {
         self.random::<f64>() < p

@@ -55,7 +55,12 @@ impl Scanner<'_> {
         let c = self.cfg;
         let n_ap = self.radio.access_points.len();
         let mut cache: Vec<Option<(TimestampMs, f64)>> = vec![None; n_ap];
-        let mut frequencies: Vec<u32> = self.radio.access_points.iter().map(|a| a.frequency_mhz).collect();
+        let mut frequencies: Vec<u32> = self
+            .radio
+            .access_points
+            .iter()
+            .map(|a| a.frequency_mhz)
+            .collect();
         frequencies.sort_unstable();
         frequencies.dedup();
         // Warm-up sweeps before the start (the phone was already scanning).
@@ -68,11 +73,15 @@ impl Scanner<'_> {
         let mut t = rng.uniform(0.3 * c.interval_s, c.interval_s);
         while t <= self.duration_s {
             let t_ms = self.start_ms + (t * 1000.0).round() as TimestampMs;
-            let is_gross = scans.len() >= c.gross_error_grace_scans && rng.chance(self.gross_error_rate);
+            let is_gross =
+                scans.len() >= c.gross_error_grace_scans && rng.chance(self.gross_error_rate);
             let entries = if is_gross {
                 let here = position(t);
                 let far = self.far_point(here, rng);
-                gross.push(InjectedGrossError { t: t_ms, position: far });
+                gross.push(InjectedGrossError {
+                    t: t_ms,
+                    position: far,
+                });
                 let mut fake: Vec<Option<(TimestampMs, f64)>> = vec![None; n_ap];
                 self.sweep(t, &frequencies, &|_| far, &mut fake, rng);
                 self.report(t_ms, &fake)
@@ -81,7 +90,12 @@ impl Scanner<'_> {
                 self.report(t_ms, &cache)
             };
             scans.push(WifiScan { t: t_ms, entries });
-            t += rng.uniform(c.interval_s - c.interval_jitter_s, c.interval_s + c.interval_jitter_s).max(0.2);
+            t += rng
+                .uniform(
+                    c.interval_s - c.interval_jitter_s,
+                    c.interval_s + c.interval_jitter_s,
+                )
+                .max(0.2);
         }
         (scans, gross)
     }
@@ -129,7 +143,11 @@ impl Scanner<'_> {
             })
             .collect();
         // Strongest first, as phones list them; ties by BSSID (deterministic).
-        entries.sort_by(|a, b| b.rssi_dbm.total_cmp(&a.rssi_dbm).then(a.bssid.cmp(&b.bssid)));
+        entries.sort_by(|a, b| {
+            b.rssi_dbm
+                .total_cmp(&a.rssi_dbm)
+                .then(a.bssid.cmp(&b.bssid))
+        });
         entries
     }
 

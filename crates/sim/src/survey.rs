@@ -96,7 +96,10 @@ impl SurveyMap {
             .into_iter()
             .map(|(x, y)| Point2::new(x as f64 / 100.0, y as f64 / 100.0))
             .filter(|&p| floor.is_walkable(p))
-            .map(|p| SurveyPoint { position: p, rss: fingerprint(radio, floor, scan, p, cfg.samples_per_point, rng) })
+            .map(|p| SurveyPoint {
+                position: p,
+                rss: fingerprint(radio, floor, scan, p, cfg.samples_per_point, rng),
+            })
             .collect();
         let test = (0..cfg.test_points)
             .map(|_| {
@@ -107,7 +110,10 @@ impl SurveyMap {
                     p += off;
                 }
                 let p = Point2::new((p.x * 100.0).round() / 100.0, (p.y * 100.0).round() / 100.0);
-                SurveyPoint { position: p, rss: fingerprint(radio, floor, scan, p, 1, rng) }
+                SurveyPoint {
+                    position: p,
+                    rss: fingerprint(radio, floor, scan, p, 1, rng),
+                }
             })
             .collect();
         Self {

@@ -113,7 +113,11 @@ impl WalkTruth {
         let Some(b) = tr.get(i) else {
             return Some(Point2::new(a.x, a.y));
         };
-        let f = if b.t > a.t { (t - a.t) as f64 / (b.t - a.t) as f64 } else { 0.0 };
+        let f = if b.t > a.t {
+            (t - a.t) as f64 / (b.t - a.t) as f64
+        } else {
+            0.0
+        };
         Some(Point2::new(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f))
     }
 

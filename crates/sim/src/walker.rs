@@ -38,7 +38,10 @@ impl PathPiece {
         if k.abs() < 1e-12 {
             (self.p0 + angle::step_displacement(u, self.psi0), psi)
         } else {
-            let d = Vector2::new((self.psi0.cos() - psi.cos()) / k, (psi.sin() - self.psi0.sin()) / k);
+            let d = Vector2::new(
+                (self.psi0.cos() - psi.cos()) / k,
+                (psi.sin() - self.psi0.sin()) / k,
+            );
             (self.p0 + d, psi)
         }
     }
@@ -76,9 +79,17 @@ impl WalkPath {
         let mut corners = Vec::new();
         let mut legs = vec![0.0];
         if n < 2 {
-            return Self { pieces, corners, legs, length: 0.0 };
+            return Self {
+                pieces,
+                corners,
+                legs,
+                length: 0.0,
+            };
         }
-        let headings: Vec<f64> = points.windows(2).map(|w| angle::heading_of(w[1] - w[0])).collect();
+        let headings: Vec<f64> = points
+            .windows(2)
+            .map(|w| angle::heading_of(w[1] - w[0]))
+            .collect();
         let lengths: Vec<f64> = points.windows(2).map(|w| (w[1] - w[0]).norm()).collect();
         // Cut at each interior vertex.
         let mut cut = vec![0.0; n];
@@ -87,7 +98,9 @@ impl WalkPath {
             let th = angle::diff(headings[i], headings[i - 1]);
             turn[i] = th;
             if th.abs() > 1e-6 {
-                cut[i] = corner_cut_m.min(0.45 * lengths[i - 1]).min(0.45 * lengths[i]);
+                cut[i] = corner_cut_m
+                    .min(0.45 * lengths[i - 1])
+                    .min(0.45 * lengths[i]);
             }
         }
         let mut s = 0.0;
@@ -96,7 +109,13 @@ impl WalkPath {
         for i in 0..n - 1 {
             // Straight part of segment i.
             let straight = (lengths[i] - cut[i] - cut[i + 1]).max(0.0);
-            let piece = PathPiece { s0: s, length: straight, p0: p, psi0: psi, curvature: 0.0 };
+            let piece = PathPiece {
+                s0: s,
+                length: straight,
+                p0: p,
+                psi0: psi,
+                curvature: 0.0,
+            };
             (p, psi) = piece.at(straight);
             pieces.push(piece);
             s += straight;
@@ -111,18 +130,33 @@ impl WalkPath {
                 };
                 let s_start = s;
                 if arc_len > 0.0 {
-                    let arc = PathPiece { s0: s, length: arc_len, p0: p, psi0: psi, curvature: k };
+                    let arc = PathPiece {
+                        s0: s,
+                        length: arc_len,
+                        p0: p,
+                        psi0: psi,
+                        curvature: k,
+                    };
                     (p, psi) = arc.at(arc_len);
                     pieces.push(arc);
                     s += arc_len;
                 }
                 // Tiny turns below the cut threshold: snap the heading (no arc).
                 psi = arc_end_heading(psi, th, arc_len);
-                corners.push(Corner { s_start, s_end: s, angle: th });
+                corners.push(Corner {
+                    s_start,
+                    s_end: s,
+                    angle: th,
+                });
                 legs.push((s_start + s) / 2.0);
             }
         }
-        Self { pieces, corners, legs, length: s }
+        Self {
+            pieces,
+            corners,
+            legs,
+            length: s,
+        }
     }
 
     fn piece_at(&self, s: f64) -> &PathPiece {
@@ -155,7 +189,11 @@ impl WalkPath {
 }
 
 fn arc_end_heading(psi_after_arc: f64, turn: f64, arc_len: f64) -> f64 {
-    if arc_len > 0.0 { psi_after_arc } else { psi_after_arc + turn }
+    if arc_len > 0.0 {
+        psi_after_arc
+    } else {
+        psi_after_arc + turn
+    }
 }
 
 /// A random route on the corridor graph from a random node, long enough for `min_length_m`:
@@ -176,7 +214,11 @@ pub fn random_route(
     while length < min_length_m && nodes.len() < 100_000 {
         let here = g.nodes[node];
         let incoming = prev.map(|p| angle::heading_of(here - g.nodes[p]));
-        let turn_of = |next: usize| incoming.map_or(0.0, |h| angle::diff(angle::heading_of(g.nodes[next] - here), h).abs());
+        let turn_of = |next: usize| {
+            incoming.map_or(0.0, |h| {
+                angle::diff(angle::heading_of(g.nodes[next] - here), h).abs()
+            })
+        };
         let options: Vec<usize> = g.neighbours[node]
             .iter()
             .copied()
@@ -335,8 +377,10 @@ impl Timeline {
         let mut first_of_bout = true;
         let mut next_corner = 0;
         while t < duration_s {
-            let f = (params.step_frequency_hz * leg_factor[path.leg_at(s)] * (1.0 + cfg.step_period_jitter * rng.normal()))
-                .clamp(0.5, 4.0);
+            let f = (params.step_frequency_hz
+                * leg_factor[path.leg_at(s)]
+                * (1.0 + cfg.step_period_jitter * rng.normal()))
+            .clamp(0.5, 4.0);
             let period = 1.0 / f;
             let l = (params.step_length_scale
                 * (cfg.step_length_intercept_m + cfg.step_length_slope_m_per_hz * f)
@@ -347,7 +391,15 @@ impl Timeline {
             }
             let leg = params.leg_length_m.max(l);
             let bounce_m = leg - (leg * leg - l * l / 4.0).max(0.0).sqrt();
-            motions.push(Motion::Step { t0: t, t1: t + period, s0: s, s1: s + l, bounce_m, index, first_of_bout });
+            motions.push(Motion::Step {
+                t0: t,
+                t1: t + period,
+                s0: s,
+                s1: s + l,
+                bounce_m,
+                index,
+                first_of_bout,
+            });
             index += 1;
             first_of_bout = false;
             t += period;
@@ -364,11 +416,17 @@ impl Timeline {
         }
         let rest = duration_s - t;
         stand(&mut motions, &mut t, s, rest);
-        Self { motions, duration_s }
+        Self {
+            motions,
+            duration_s,
+        }
     }
 
     fn motion_at(&self, t: f64) -> Option<&Motion> {
-        let i = self.motions.partition_point(|m| m.t0() <= t).saturating_sub(1);
+        let i = self
+            .motions
+            .partition_point(|m| m.t0() <= t)
+            .saturating_sub(1);
         self.motions.get(i)
     }
 
@@ -387,10 +445,22 @@ impl Timeline {
         match self.motion_at(t.clamp(0.0, self.duration_s)) {
             None => idle(0.0),
             Some(&Motion::Stand { s, .. }) => idle(s),
-            Some(&Motion::Step { t0, t1, s0, s1, bounce_m, index, first_of_bout }) => {
+            Some(&Motion::Step {
+                t0,
+                t1,
+                s0,
+                s1,
+                bounce_m,
+                index,
+                first_of_bout,
+            }) => {
                 let period = (t1 - t0).max(1e-6);
                 let u = ((t - t0) / period).clamp(0.0, 1.0);
-                let ramp = if first_of_bout { 0.5 - 0.5 * (std::f64::consts::PI * u).cos() } else { 1.0 };
+                let ramp = if first_of_bout {
+                    0.5 - 0.5 * (std::f64::consts::PI * u).cos()
+                } else {
+                    1.0
+                };
                 Kinematics {
                     s: s0 + (s1 - s0) * u,
                     speed: (s1 - s0) / period,
@@ -430,7 +500,9 @@ impl Timeline {
 
     /// The steps, in order.
     pub fn steps(&self) -> impl Iterator<Item = &Motion> {
-        self.motions.iter().filter(|m| matches!(m, Motion::Step { .. }))
+        self.motions
+            .iter()
+            .filter(|m| matches!(m, Motion::Step { .. }))
     }
 }
 
@@ -441,7 +513,12 @@ mod tests {
 
     #[test]
     fn rounded_path_is_continuous_and_turns_smoothly() {
-        let pts = [Point2::new(0.0, 0.0), Point2::new(0.0, 10.0), Point2::new(10.0, 10.0), Point2::new(10.0, 0.0)];
+        let pts = [
+            Point2::new(0.0, 0.0),
+            Point2::new(0.0, 10.0),
+            Point2::new(10.0, 10.0),
+            Point2::new(10.0, 0.0),
+        ];
         let path = WalkPath::through(&pts, 1.5);
         assert_eq!(path.corners.len(), 2);
         assert!((path.corners[0].angle - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
@@ -463,7 +540,11 @@ mod tests {
         let pts = [Point2::new(0.0, 0.0), Point2::new(0.0, 200.0)];
         let path = WalkPath::through(&pts, 1.5);
         let mut r = rng::stream(7, 3);
-        let params = WalkerParams { step_frequency_hz: 1.8, step_length_scale: 1.0, leg_length_m: 0.9 };
+        let params = WalkerParams {
+            step_frequency_hz: 1.8,
+            step_length_scale: 1.0,
+            leg_length_m: 0.9,
+        };
         let tl = Timeline::generate(&path, &WalkerConfig::default(), &params, 60.0, &mut r);
         let mut t = 0.0;
         for m in &tl.motions {
@@ -474,7 +555,10 @@ mod tests {
         let n = tl.steps().count();
         assert!((95..=115).contains(&n), "{n} steps in 60 s at 1.8 Hz");
         for m in tl.steps() {
-            if let Motion::Step { s0, s1, bounce_m, .. } = *m {
+            if let Motion::Step {
+                s0, s1, bounce_m, ..
+            } = *m
+            {
                 assert!((0.5..0.95).contains(&(s1 - s0)));
                 assert!(bounce_m > 0.02 && bounce_m < 0.15);
             }

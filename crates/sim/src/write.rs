@@ -20,7 +20,9 @@ use crate::{SimConfig, SimError, SimFloor, SurveyMap};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use wipdr_io::LonLatBox;
-use wipdr_io::fingerprint_csv::{FingerprintLabel, FingerprintTable, NOT_DETECTED, write_fingerprint_csv};
+use wipdr_io::fingerprint_csv::{
+    FingerprintLabel, FingerprintTable, NOT_DETECTED, write_fingerprint_csv,
+};
 
 /// South-west corner of the synthetic floor's GeoJSON, degrees (an arbitrary place).
 pub const GEO_ORIGIN_LON_LAT: (f64, f64) = (120.0, 30.0);
@@ -35,7 +37,10 @@ struct WorldFile<'a> {
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
-    move |source| SimError::Io { path: path.to_path_buf(), source }
+    move |source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }
 
 fn write_json(path: &Path, value: &impl Serialize) -> Result<(), SimError> {
@@ -49,8 +54,18 @@ fn write_json(path: &Path, value: &impl Serialize) -> Result<(), SimError> {
 fn table(bssid_count: usize, points: &[SurveyPoint]) -> Result<FingerprintTable, SimError> {
     let mut t = FingerprintTable::new((0..bssid_count).map(|j| format!("ap_{j:03}")).collect());
     for p in points {
-        let row: Vec<f32> = p.rss.iter().map(|v| v.map_or(NOT_DETECTED, |v| v as f32)).collect();
-        let label = FingerprintLabel { x: p.position.x, y: p.position.y, z: 0.0, floor: 0, building: 0 };
+        let row: Vec<f32> = p
+            .rss
+            .iter()
+            .map(|v| v.map_or(NOT_DETECTED, |v| v as f32))
+            .collect();
+        let label = FingerprintLabel {
+            x: p.position.x,
+            y: p.position.y,
+            z: 0.0,
+            floor: 0,
+            building: 0,
+        };
         t.push_row(&row, label)?;
     }
     Ok(t)

@@ -6,11 +6,13 @@ use wipdr_core::{Point2, angle};
 use wipdr_sim::{SimConfig, SimFloor, generate, write};
 
 fn small_config() -> SimConfig {
-    let mut cfg = SimConfig::default();
-    cfg.walks = 3;
-    cfg.duration_s = 60.0;
-    cfg.duration_jitter_s = 10.0;
-    cfg.gross_error_rate = 0.1;
+    let mut cfg = SimConfig {
+        walks: 3,
+        duration_s: 60.0,
+        duration_jitter_s: 10.0,
+        gross_error_rate: 0.1,
+        ..SimConfig::default()
+    };
     cfg.survey.spacing_m = 6.0;
     cfg.survey.test_points = 10;
     cfg
@@ -56,7 +58,13 @@ fn same_seed_writes_byte_identical_files() {
     let c = tempfile::tempdir().unwrap();
     write::write_floor(&generate(&cfg, 12).unwrap(), c.path()).unwrap();
     let fc = all_files(c.path());
-    let walk = |f: &[(String, Vec<u8>)]| f.iter().find(|(n, _)| n.ends_with("w0000.txt.gz")).unwrap().1.clone();
+    let walk = |f: &[(String, Vec<u8>)]| {
+        f.iter()
+            .find(|(n, _)| n.ends_with("w0000.txt.gz"))
+            .unwrap()
+            .1
+            .clone()
+    };
     assert_ne!(walk(&fa), walk(&fc));
 }
 
@@ -77,9 +85,20 @@ fn walks_stay_in_walkable_space_and_cross_no_wall() {
         let tr = &w.truth.trajectory;
         assert!(tr.len() > 100);
         for pair in tr.windows(2) {
-            let (a, b) = (Point2::new(pair[0].x, pair[0].y), Point2::new(pair[1].x, pair[1].y));
-            assert!(plan.is_walkable(b), "{} leaves walkable space at {b}", w.truth.walk_id);
-            assert!(!plan.crosses_wall(a, b), "{} crosses a wall {a} -> {b}", w.truth.walk_id);
+            let (a, b) = (
+                Point2::new(pair[0].x, pair[0].y),
+                Point2::new(pair[1].x, pair[1].y),
+            );
+            assert!(
+                plan.is_walkable(b),
+                "{} leaves walkable space at {b}",
+                w.truth.walk_id
+            );
+            assert!(
+                !plan.crosses_wall(a, b),
+                "{} crosses a wall {a} -> {b}",
+                w.truth.walk_id
+            );
         }
         for wp in &w.walk.waypoints {
             assert!(plan.is_walkable(wp.position));
@@ -94,8 +113,12 @@ fn imu_runs_at_about_50_hz_with_jitter() {
         let acc = &w.walk.imu.accelerometer;
         let rate = wipdr_core::imu::mean_rate_hz(acc.iter().map(|a| a.t)).unwrap();
         assert!((rate - 50.0).abs() < 1.0, "rate {rate}");
-        assert!(acc.windows(2).all(|p| p[1].t > p[0].t), "timestamps strictly increasing");
-        let distinct: std::collections::BTreeSet<i64> = acc.windows(2).map(|p| p[1].t - p[0].t).collect();
+        assert!(
+            acc.windows(2).all(|p| p[1].t > p[0].t),
+            "timestamps strictly increasing"
+        );
+        let distinct: std::collections::BTreeSet<i64> =
+            acc.windows(2).map(|p| p[1].t - p[0].t).collect();
         assert!(distinct.len() > 3, "timestamps are jittered: {distinct:?}");
         for stream in [&w.walk.imu.gyroscope, &w.walk.imu.magnetometer] {
             assert_eq!(stream.len(), acc.len());
@@ -115,15 +138,26 @@ fn step_truth_is_consistent_with_the_trajectory() {
         let t = &w.truth;
         assert!(t.steps.len() > 50);
         for st in &t.steps {
-            assert!((0.5..=0.95).contains(&st.length), "step length {}", st.length);
+            assert!(
+                (0.5..=0.95).contains(&st.length),
+                "step length {}",
+                st.length
+            );
             assert!(st.length <= st.arc_length + 1e-6, "chord longer than arc");
             assert!((1.0 / st.period_s) > 1.2 && (1.0 / st.period_s) < 2.6);
         }
         // Summed step displacements reproduce the trajectory end to end.
         let start = t.position_at(t.start_ms).unwrap();
         let end = t.position_at(t.end_ms).unwrap();
-        let summed = t.steps.iter().fold(start, |p, st| p + angle::step_displacement(st.length, st.heading));
-        assert!((summed - end).norm() < 0.05, "{}: dead reckoning with true steps ends {} m off", t.walk_id, (summed - end).norm());
+        let summed = t.steps.iter().fold(start, |p, st| {
+            p + angle::step_displacement(st.length, st.heading)
+        });
+        assert!(
+            (summed - end).norm() < 0.05,
+            "{}: dead reckoning with true steps ends {} m off",
+            t.walk_id,
+            (summed - end).norm()
+        );
         // Every step's end is on the trajectory.
         for st in t.steps.iter().step_by(7) {
             assert!(t.position_at(st.t).is_some());
@@ -131,10 +165,22 @@ fn step_truth_is_consistent_with_the_trajectory() {
         // Turns are ordered, and their angles match the heading change of the trajectory.
         for turn in &t.turns {
             assert!(turn.t_end >= turn.t_start);
-            let before = t.steps.iter().rev().find(|s| s.t <= turn.t_start).map(|s| s.heading);
-            let after = t.steps.iter().find(|s| s.t >= turn.t_end + 600).map(|s| s.heading);
+            let before = t
+                .steps
+                .iter()
+                .rev()
+                .find(|s| s.t <= turn.t_start)
+                .map(|s| s.heading);
+            let after = t
+                .steps
+                .iter()
+                .find(|s| s.t >= turn.t_end + 600)
+                .map(|s| s.heading);
             if let (Some(b), Some(a)) = (before, after) {
-                assert!(angle::diff(angle::diff(a, b), turn.angle).abs() < 0.35, "turn {turn:?}: {b} -> {a}");
+                assert!(
+                    angle::diff(angle::diff(a, b), turn.angle).abs() < 0.35,
+                    "turn {turn:?}: {b} -> {a}"
+                );
             }
         }
     }
@@ -153,7 +199,11 @@ fn scans_are_periodic_with_stale_entries_and_known_gross_errors() {
             assert!((1500..=2500).contains(&dt), "scan interval {dt} ms");
         }
         for sc in scans {
-            assert!(sc.entries.len() >= 5, "scan with {} entries", sc.entries.len());
+            assert!(
+                sc.entries.len() >= 5,
+                "scan with {} entries",
+                sc.entries.len()
+            );
             for e in &sc.entries {
                 assert!(e.rssi_dbm >= -95.0 && e.rssi_dbm < 0.0);
                 ages.push(e.age_ms(sc.t));
@@ -182,7 +232,11 @@ fn written_floor_reads_back_with_the_real_readers() {
     let data = wipdr_io::read_floor_dir(&floor_dir, &wipdr_io::ReadOptions::default()).unwrap();
     assert_eq!(data.walks.len(), s.walks.len());
     for (read, orig) in data.walks.iter().zip(&s.walks) {
-        assert_eq!(read.walk, orig.walk, "{} changed on the way through the files", orig.walk.meta.id);
+        assert_eq!(
+            read.walk, orig.walk,
+            "{} changed on the way through the files",
+            orig.walk.meta.id
+        );
     }
     assert_eq!(data.plan.units.len(), s.world.floor.plan.units.len());
     let (train, test) = wipdr_io::fingerprint_csv::read_dataset(floor_dir.join("survey")).unwrap();

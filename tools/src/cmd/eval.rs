@@ -1,10 +1,117 @@
-//! `wipdr eval` (not implemented yet).
+//! `wipdr eval`: the protocol of `docs/evaluation.md` on recorded walks, for any schemes.
+
+use crate::{data, eval_plots, progress};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
+use wipdr_eval::report::EvalReport;
 
 /// Arguments of `wipdr eval`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Floor folders (ILC layout: `path_data_files/`, `floor_info.json`, `geojson_map.json`).
+    #[arg(long, num_args = 1.., required = true)]
+    pub data: Vec<PathBuf>,
+    /// Schemes to run, comma separated (wifi, pdr, ekf, aekf, akf, rkf, arkf, aws, tcpf, pf, apf).
+    #[arg(long, value_delimiter = ',', default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf")]
+    pub schemes: Vec<String>,
+    /// Evaluation config (TOML; see `docs/guide.md`); defaults otherwise.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Write the figures (pooled, per floor, per walk) as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write plots into this folder: trajectories, error CDF, error against time.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// How many walks per floor get a trajectory plot.
+    #[arg(long, default_value_t = 2)]
+    pub plot_walks: usize,
+}
+
+/// Reads an evaluation config file (TOML), or the defaults.
+pub fn load_config(path: Option<&Path>) -> Result<EvalConfig> {
+    match path {
+        None => Ok(EvalConfig::default()),
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            toml::from_str(&text).with_context(|| format!("parsing config {}", p.display()))
+        }
+    }
+}
+
+/// Evaluates and prints; shared with `wipdr demo`.
+pub fn evaluate_and_report(
+    floors: &[FloorInput],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    json: Option<&Path>,
+    plots: Option<&Path>,
+    plot_walks: usize,
+) -> Result<EvalReport> {
+    for s in schemes {
+        cfg.scheme(s)?;
+    }
+    let started = std::time::Instant::now();
+    let prepared = {
+        let pb = progress::bar(floors.len() as u64, "preparing");
+        let p = pipeline::prepare(floors, cfg)?;
+        pb.finish_and_clear();
+        p
+    };
+    let pb = progress::bar((prepared.len() * schemes.len()) as u64, "running");
+    let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    let unmatched: usize = prepared.iter().map(|p| p.unmatched_scans).sum();
+    let scans: usize = prepared.iter().map(|p| p.observations.len()).sum::<usize>() + unmatched;
+    println!(
+        "{} test walks on {} floor(s), 5-fold by walk; {} scans ({} unmatched); {:.1} s",
+        prepared.len(),
+        floors.len(),
+        scans,
+        unmatched,
+        started.elapsed().as_secs_f64()
+    );
+    println!("errors in metres at waypoints (pdr starts at the true first waypoint; every other scheme at the first Wi-Fi fix)\n");
+    print!("{}", report.table());
+    if let Some(path) = json {
+        crate::plotting::ensure_parent(path)?;
+        let value = serde_json::json!({
+            "pooled": report.pooled,
+            "floors": report.floors,
+            "walks": report.walks.iter().map(|w| {
+                let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
+                serde_json::json!({
+                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
+                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
+                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
+                })
+            }).collect::<Vec<_>>(),
+            "schemes": report.schemes,
+            "config": cfg,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&value)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("\nwrote {}", path.display());
+    }
+    if let Some(dir) = plots {
+        let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, plot_walks)?;
+        println!("wrote {} plots into {}", files, dir.display());
+    }
+    Ok(report)
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`wipdr eval` is not implemented yet")
+pub fn run(args: Args) -> Result<()> {
+    let cfg = load_config(args.config.as_deref())?;
+    let floors = data::load_floors(&args.data)?;
+    evaluate_and_report(
+        &floors,
+        &cfg,
+        &args.schemes,
+        args.json.as_deref(),
+        args.plots.as_deref(),
+        args.plot_walks,
+    )?;
+    Ok(())
 }

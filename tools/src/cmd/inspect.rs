@@ -35,8 +35,10 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut options = ReadOptions::default();
     if let Some(path) = &args.limits {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        options.limits = toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        options.limits =
+            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
     }
     let started = Instant::now();
     for path in &args.paths {
@@ -47,7 +49,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     if args.paths.len() > 1 {
-        println!("all {} paths in {:.2} s", args.paths.len(), started.elapsed().as_secs_f64());
+        println!(
+            "all {} paths in {:.2} s",
+            args.paths.len(),
+            started.elapsed().as_secs_f64()
+        );
     }
     Ok(())
 }
@@ -57,7 +63,11 @@ fn inspect_walk(path: &Path, options: &ReadOptions) -> anyhow::Result<()> {
     let parsed = trace::read_walk_with(path, &options.limits)?;
     let elapsed = t0.elapsed().as_secs_f64();
     let w = &parsed.walk;
-    println!("walk {} ({}), read in {elapsed:.3} s", w.meta.id, path.display());
+    println!(
+        "walk {} ({}), read in {elapsed:.3} s",
+        w.meta.id,
+        path.display()
+    );
     let meta = &w.meta;
     let opt = |v: &Option<String>| v.clone().unwrap_or_else(|| "-".into());
     println!(
@@ -112,7 +122,9 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
     let total: f64 = durations.iter().sum();
     let (min, max) = durations
         .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(*d), hi.max(*d)));
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| {
+            (lo.min(*d), hi.max(*d))
+        });
     let waypoints: usize = walks.iter().map(|w| w.waypoints.len()).sum();
     let inside: usize = walks
         .iter()
@@ -122,7 +134,11 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
     let scans: usize = walks.iter().map(|w| w.wifi.len()).sum();
     let aps: HashSet<Bssid> = walks
         .iter()
-        .flat_map(|w| w.wifi.iter().flat_map(|s| s.entries.iter().map(|e| e.bssid)))
+        .flat_map(|w| {
+            w.wifi
+                .iter()
+                .flat_map(|s| s.entries.iter().map(|e| e.bssid))
+        })
         .collect();
     println!(
         "  {} walks, total {:.1} min (each {:.1}-{:.1} s, mean {:.1} s)",
@@ -130,7 +146,11 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
         total / 60.0,
         if walks.is_empty() { 0.0 } else { min },
         max,
-        if walks.is_empty() { 0.0 } else { total / walks.len() as f64 }
+        if walks.is_empty() {
+            0.0
+        } else {
+            total / walks.len() as f64
+        }
     );
     println!(
         "  {waypoints} waypoints ({} inside the outline), {scans} Wi-Fi scans, {} distinct APs",
@@ -201,7 +221,17 @@ fn walk_rates(w: &Walk) -> [Option<f64>; 5] {
 fn print_walk_table(walks: &[ParsedWalk]) {
     println!(
         "  {:<26} {:>7} {:>5} {:>6} {:>5} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8}",
-        "walk", "dur s", "wpts", "scans", "APs", "acc Hz", "gyr Hz", "mag Hz", "rot Hz", "kept", "skipped"
+        "walk",
+        "dur s",
+        "wpts",
+        "scans",
+        "APs",
+        "acc Hz",
+        "gyr Hz",
+        "mag Hz",
+        "rot Hz",
+        "kept",
+        "skipped"
     );
     for p in walks {
         let w = &p.walk;
@@ -240,13 +270,22 @@ fn print_report(r: &ParseReport, with_lines: bool) {
     println!("    kept by type: {}", kept.join(", "));
     for (kind, s) in &r.skipped {
         if with_lines {
-            println!("    skipped {}: {} (first lines {:?})", kind.label(), s.count, s.first_lines);
+            println!(
+                "    skipped {}: {} (first lines {:?})",
+                kind.label(),
+                s.count,
+                s.first_lines
+            );
         } else {
             println!("    skipped {}: {}", kind.label(), s.count);
         }
     }
     if !r.unknown_types.is_empty() {
-        let unknown: Vec<String> = r.unknown_types.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        let unknown: Vec<String> = r
+            .unknown_types
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect();
         println!("    unknown types: {}", unknown.join(", "));
     }
     println!(

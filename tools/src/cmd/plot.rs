@@ -40,12 +40,10 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn plot_floor(a: FloorArgs) -> Result<()> {
-    let floor = wipdr_io::floor::read_floor_dir_cached(
-        &a.dir,
-        &wipdr_io::cache::default_cache_dir(),
-        &wipdr_io::floor::ReadOptions::default(),
-    )
-    .with_context(|| format!("reading floor {}", a.dir.display()))?;
+    let floor = crate::data::load_floors(std::slice::from_ref(&a.dir))?
+        .pop()
+        .context("no floor read")?
+        .data;
     plotting::ensure_parent(&a.out)?;
     let (w, h) = plotting::floor_canvas_size(floor.width, floor.height, a.size);
     let caption = format!(

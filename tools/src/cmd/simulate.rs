@@ -32,8 +32,10 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut cfg = match &args.config {
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            toml::from_str::<SimConfig>(&text).with_context(|| format!("parsing {}", path.display()))?
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            toml::from_str::<SimConfig>(&text)
+                .with_context(|| format!("parsing {}", path.display()))?
         }
         None => SimConfig::default(),
     };
@@ -48,11 +50,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cfg.gross_error_rate = r;
     }
     let sim = generate(&cfg, args.seed).context("generating the synthetic floor")?;
-    let dir = write::write_floor(&sim, &args.out).with_context(|| format!("writing under {}", args.out.display()))?;
+    let dir = write::write_floor(&sim, &args.out)
+        .with_context(|| format!("writing under {}", args.out.display()))?;
     let steps: usize = sim.walks.iter().map(|w| w.truth.steps.len()).sum();
     let scans: usize = sim.walks.iter().map(|w| w.walk.wifi.len()).sum();
     let gross: usize = sim.walks.iter().map(|w| w.truth.gross_errors.len()).sum();
-    let seconds: f64 = sim.walks.iter().map(|w| (w.truth.end_ms - w.truth.start_ms) as f64 / 1000.0).sum();
+    let seconds: f64 = sim
+        .walks
+        .iter()
+        .map(|w| (w.truth.end_ms - w.truth.start_ms) as f64 / 1000.0)
+        .sum();
     println!(
         "wrote {}: {} walks ({:.0} s, {} steps, {} scans, {} injected gross errors), {} BSSIDs, survey {} train / {} test points (seed {})",
         dir.display(),

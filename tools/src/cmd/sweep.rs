@@ -1,10 +1,122 @@
-//! `wipdr sweep` (not implemented yet).
+//! `wipdr sweep`: parameter sweeps over any config field, rayon-parallel, resumable,
+//! shardable; `wipdr sweep merge` joins shard files.
+
+use crate::{data, progress};
+use anyhow::{Context, Result, bail};
+use std::path::PathBuf;
+use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
 
 /// Arguments of `wipdr sweep`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    /// `merge` joins shard files.
+    #[command(subcommand)]
+    merge: Option<Sub>,
+    /// The sweep file (TOML: scheme, objective, grid and/or random ranges; see `docs/guide.md`).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Floor folders.
+    #[arg(long, num_args = 1..)]
+    data: Vec<PathBuf>,
+    /// Results CSV: one row per finished config, appended and flushed at once.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Continue an existing results file, skipping finished configs.
+    #[arg(long)]
+    resume: bool,
+    /// Run one deterministic slice `I/N` (configs with index % N == I), for batch systems.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Base evaluation config the sweep varies (TOML); defaults otherwise.
+    #[arg(long)]
+    base: Option<PathBuf>,
+    /// Stop after this many configs (the rest can be resumed).
+    #[arg(long)]
+    max_configs: Option<usize>,
+    /// Where to write the best config (default: the results file with `.best.toml`).
+    #[arg(long)]
+    best_out: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum Sub {
+    /// Join shard result files into one, sorted by config index.
+    Merge {
+        /// Output CSV.
+        #[arg(long)]
+        out: PathBuf,
+        /// Shard CSVs.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+    },
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize)> {
+    let (i, n) = s.split_once('/').context("--shard takes I/N, e.g. 0/4")?;
+    let (i, n): (usize, usize) = (i.trim().parse()?, n.trim().parse()?);
+    if n == 0 || i >= n {
+        bail!("--shard {s}: need 0 <= I < N");
+    }
+    Ok((i, n))
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`wipdr sweep` is not implemented yet")
+pub fn run(args: Args) -> Result<()> {
+    if let Some(Sub::Merge { out, shards }) = args.merge {
+        let rows = sweep::merge(&shards, &out)?;
+        println!("merged {} shard files: {} configs into {}", shards.len(), rows.len(), out.display());
+        return Ok(());
+    }
+    let spec_path = args.config.context("--config SWEEP.toml is required")?;
+    let out = args.out.context("--out RESULTS.csv is required")?;
+    if args.data.is_empty() {
+        bail!("--data FLOOR_DIR... is required");
+    }
+    let text = std::fs::read_to_string(&spec_path).with_context(|| format!("reading {}", spec_path.display()))?;
+    let spec: SweepSpec = toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
+    let base = crate::cmd::eval::load_config(args.base.as_deref())?;
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    let total = spec.expand()?.len();
+    let floors = data::load_floors(&args.data)?;
+    let options = SweepOptions {
+        resume: args.resume,
+        shard,
+        max_configs: args.max_configs,
+    };
+    let pb = progress::bar(total as u64, "configs");
+    let started = std::time::Instant::now();
+    let outcome = sweep::run_sweep(&spec, &base, &floors, &out, &options, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    println!(
+        "{} configs run, {} already in {}, {:.1} s{}",
+        outcome.ran,
+        outcome.skipped,
+        out.display(),
+        started.elapsed().as_secs_f64(),
+        if outcome.complete { "" } else { " (incomplete: run again with --resume)" }
+    );
+    let mut best: Vec<&sweep::SweepRow> = outcome.rows.iter().collect();
+    best.sort_by(|a, b| a.objective.total_cmp(&b.objective));
+    println!("\nbest by {:?} ({}):", spec.objective, spec.scheme);
+    for r in best.iter().take(5) {
+        println!(
+            "  #{:<5} {:>7.3}  mean {:.2}  p95 {:.2}  n {}  {}",
+            r.index, r.objective, r.summary.mean, r.summary.p95, r.summary.count, r.id
+        );
+    }
+    if let Some(top) = best.first() {
+        let points = spec.expand()?;
+        let point = points
+            .iter()
+            .find(|p| p.index == top.index)
+            .context("best row not in the sweep")?;
+        let cfg = sweep::config_for(&base, &spec.scheme, point)?;
+        let path = args
+            .best_out
+            .unwrap_or_else(|| out.with_extension("best.toml"));
+        std::fs::write(&path, toml::to_string_pretty(&cfg)?).with_context(|| format!("writing {}", path.display()))?;
+        println!("\nbest config written to {} (use with `wipdr eval --config`)", path.display());
+    }
+    Ok(())
 }

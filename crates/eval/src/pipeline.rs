@@ -1,0 +1,419 @@
+//! The protocol of `docs/evaluation.md`, end to end: folds per floor, radio map and PDR
+//! calibration from the training walks of each fold, causal runs of every scheme over each
+//! test walk, scoring at the waypoints.
+//!
+//! The work is split in two so that sweeps can reuse the expensive part:
+//! [`prepare`] turns every test walk into scheme inputs (PDR steps and Wi-Fi observations,
+//! which depend on the radio-map, matcher and PDR settings only), and [`run_prepared`] runs
+//! fusion schemes over those inputs and scores them. A test walk's waypoints never reach a
+//! scheme: they are kept apart in [`PreparedWalk::waypoints`] for scoring; the only exception
+//! is the PDR-only baseline, which by the protocol starts at the true first waypoint and is
+//! labelled so.
+
+use crate::report::{EvalReport, WalkResult};
+use crate::scoring::{Track, score_track};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use thiserror::Error;
+use wipdr_core::stats::folds_by_name;
+use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
+use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, QueryFilter};
+use wipdr_fusion::{BuildContext, SchemeConfig, WallIndex};
+use wipdr_io::floor::FloorData;
+use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
+use wipdr_pdr::{Pdr, PdrConfig};
+
+/// Errors of an evaluation.
+#[derive(Debug, Error)]
+pub enum EvalError {
+    /// A floor has fewer walks than folds.
+    #[error("floor {floor}: {walks} walks, need at least {folds} for the protocol folds")]
+    TooFewWalks {
+        /// Floor label.
+        floor: String,
+        /// Walks found.
+        walks: usize,
+        /// Folds required.
+        folds: usize,
+    },
+    /// Building a radio map or matcher failed.
+    #[error("floor {floor}, fold {fold}: {source}")]
+    Fingerprint {
+        /// Floor label.
+        floor: String,
+        /// Fold.
+        fold: usize,
+        /// Cause.
+        source: wipdr_fingerprint::FingerprintError,
+    },
+    /// A sweep could not be set up or recorded.
+    #[error("sweep: {0}")]
+    Sweep(String),
+    /// A scheme could not be built from its config.
+    #[error("scheme {scheme}: {source}")]
+    Scheme {
+        /// Scheme name.
+        scheme: String,
+        /// Cause.
+        source: wipdr_fusion::FusionError,
+    },
+}
+
+/// Everything an evaluation can be told; every field has a default. Deserialises from TOML
+/// (`wipdr eval --config FILE.toml`); the sweep tool addresses its fields by dotted path
+/// (`radio_map.max_entry_age_ms`, `matcher.k`, `schemes.ekf.r_wifi`, …).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvalConfig {
+    /// How training walks become a radio map.
+    pub radio_map: WalkMapConfig,
+    /// The matcher.
+    pub matcher: KnnConfig,
+    /// Online filtering of test scans.
+    pub query: QueryFilter,
+    /// The PDR pipeline (before calibration).
+    pub pdr: PdrConfig,
+    /// Whether step length (and heading offset) are fitted on each fold's training walks.
+    pub calibrate_pdr: bool,
+    /// How the calibration fits.
+    pub calibration: CalibrationConfig,
+    /// Score only waypoints after the walk's first Wi-Fi scan, for every scheme (as the
+    /// reference pipeline does); earlier ones are counted as skipped.
+    pub score_from_first_scan: bool,
+    /// Seed of the random schemes (mixed with each walk's id).
+    pub seed: u64,
+    /// Scheme configs by name; a scheme not listed runs with its defaults.
+    pub schemes: BTreeMap<String, SchemeConfig>,
+}
+
+impl Default for EvalConfig {
+    fn default() -> Self {
+        Self {
+            radio_map: WalkMapConfig::default(),
+            matcher: KnnConfig::default(),
+            query: QueryFilter {
+                max_age_ms: WalkMapConfig::default().max_entry_age_ms,
+                ..QueryFilter::default()
+            },
+            pdr: PdrConfig::default(),
+            calibrate_pdr: true,
+            calibration: CalibrationConfig::default(),
+            score_from_first_scan: true,
+            seed: 1,
+            schemes: BTreeMap::new(),
+        }
+    }
+}
+
+impl EvalConfig {
+    /// The config of scheme `name`: the one given, else its defaults.
+    pub fn scheme(&self, name: &str) -> Result<SchemeConfig, EvalError> {
+        match self.schemes.get(name) {
+            Some(c) => Ok(c.clone()),
+            None => SchemeConfig::default_for(name).map_err(|source| EvalError::Scheme {
+                scheme: name.to_string(),
+                source,
+            }),
+        }
+    }
+
+    /// A key of the settings [`prepare`] depends on (equal keys, equal prepared inputs).
+    pub fn preparation_key(&self) -> String {
+        serde_json::json!({
+            "radio_map": self.radio_map, "matcher": self.matcher, "query": self.query,
+            "pdr": self.pdr, "calibrate_pdr": self.calibrate_pdr,
+            "calibration": self.calibration,
+        })
+        .to_string()
+    }
+}
+
+/// A floor under evaluation: its label (as given on the command line) and data.
+#[derive(Debug, Clone)]
+pub struct FloorInput {
+    /// Label used in reports.
+    pub label: String,
+    /// The parsed floor.
+    pub data: Arc<FloorData>,
+}
+
+/// One test walk turned into scheme inputs.
+#[derive(Debug, Clone)]
+pub struct PreparedWalk {
+    /// Floor label.
+    pub floor: String,
+    /// Index of the floor in the input list.
+    pub floor_index: usize,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold.
+    pub fold: usize,
+    /// PDR steps (calibrated on the fold's training walks).
+    pub steps: Vec<StepEvent>,
+    /// Wi-Fi observations (radio map of the fold's training walks).
+    pub observations: Vec<WifiObservation>,
+    /// Scans the matcher could not use (no known AP left after filtering, …).
+    pub unmatched_scans: usize,
+    /// Time of the walk's first Wi-Fi scan.
+    pub first_scan_t: Option<TimestampMs>,
+    /// Ground truth, for scoring only.
+    pub waypoints: Vec<Waypoint>,
+}
+
+impl PreparedWalk {
+    /// The true first waypoint: the start of the PDR-only baseline (and only of it).
+    pub fn true_start(&self) -> Option<Waypoint> {
+        self.waypoints.first().copied()
+    }
+}
+
+/// Steps of `walk` under `cfg`.
+pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
+    Pdr::run(cfg.clone(), walk)
+}
+
+/// Fits step length and heading offset on `training` walks (their waypoints are training
+/// data). Returns `base` unchanged when there is nothing to fit on.
+pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
+    let detailed: Vec<_> = training
+        .par_iter()
+        .map(|w| Pdr::run_detailed(base.clone(), w).0)
+        .collect();
+    let walks: Vec<WalkSteps<'_>> = detailed
+        .iter()
+        .zip(training)
+        .map(|(steps, w)| WalkSteps {
+            steps,
+            waypoints: &w.waypoints,
+        })
+        .collect();
+    let mut out = base.clone();
+    out.step_length = fit_step_length(base.step_length, &walks, cal);
+    if cal.fit_heading_offset
+        && let Some(off) = fit_heading_offset(&out.step_length, base.heading.source, &walks, cal)
+    {
+        out.heading.map_offset_rad = base.heading.map_offset_rad + off;
+    }
+    out
+}
+
+/// Turns every walk of `floors` into scheme inputs under the protocol folds.
+pub fn prepare(floors: &[FloorInput], cfg: &EvalConfig) -> Result<Vec<PreparedWalk>, EvalError> {
+    let mut jobs = Vec::new();
+    for (fi, f) in floors.iter().enumerate() {
+        let n = f.data.walks.len();
+        if n < wipdr_core::stats::FOLDS {
+            return Err(EvalError::TooFewWalks {
+                floor: f.label.clone(),
+                walks: n,
+                folds: wipdr_core::stats::FOLDS,
+            });
+        }
+        for fold in 0..wipdr_core::stats::FOLDS {
+            jobs.push((fi, fold));
+        }
+    }
+    let per_fold: Vec<Result<Vec<PreparedWalk>, EvalError>> = jobs
+        .par_iter()
+        .map(|&(fi, fold)| prepare_fold(&floors[fi], fi, fold, cfg))
+        .collect();
+    let mut out = Vec::new();
+    for r in per_fold {
+        out.extend(r?);
+    }
+    out.sort_by(|a, b| (a.floor_index, &a.walk).cmp(&(b.floor_index, &b.walk)));
+    Ok(out)
+}
+
+fn prepare_fold(
+    floor: &FloorInput,
+    floor_index: usize,
+    fold: usize,
+    cfg: &EvalConfig,
+) -> Result<Vec<PreparedWalk>, EvalError> {
+    let walks = &floor.data.walks;
+    let ids: Vec<&str> = walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+    let folds = folds_by_name(&ids);
+    let training: Vec<&Walk> = walks
+        .iter()
+        .zip(&folds)
+        .filter(|(_, f)| **f != fold)
+        .map(|(w, _)| &w.walk)
+        .collect();
+    let fp_err = |source| EvalError::Fingerprint {
+        floor: floor.label.clone(),
+        fold,
+        source,
+    };
+    let (map, report) = build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
+    tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
+    let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
+    let pdr_cfg = if cfg.calibrate_pdr {
+        calibrate_pdr(&cfg.pdr, &cfg.calibration, &training)
+    } else {
+        cfg.pdr.clone()
+    };
+    let tests: Vec<(usize, &Walk)> = walks
+        .iter()
+        .zip(&folds)
+        .enumerate()
+        .filter(|(_, (_, f))| **f == fold)
+        .map(|(i, (w, _))| (i, &w.walk))
+        .collect();
+    Ok(tests
+        .par_iter()
+        .map(|&(_, walk)| {
+            let steps = steps_of(&pdr_cfg, walk);
+            let mut observations = Vec::with_capacity(walk.wifi.len());
+            let mut unmatched = 0;
+            for scan in &walk.wifi {
+                match matcher.locate_scan(scan, &cfg.query) {
+                    Ok(o) => observations.push(o),
+                    Err(e) => {
+                        unmatched += 1;
+                        tracing::trace!(walk = %walk.meta.id, t = scan.t, error = %e, "scan not matched");
+                    }
+                }
+            }
+            PreparedWalk {
+                floor: floor.label.clone(),
+                floor_index,
+                walk: walk.meta.id.clone(),
+                fold,
+                steps,
+                observations,
+                unmatched_scans: unmatched,
+                first_scan_t: walk.wifi.first().map(|s| s.t),
+                waypoints: walk.waypoints.clone(),
+            }
+        })
+        .collect())
+}
+
+/// Mixes the evaluation seed with a walk id (FNV-1a), so every walk has its own stream.
+fn walk_seed(seed: u64, walk: &str) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
+    for b in walk.bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// Runs one scheme causally over one prepared walk: steps and observations merged in time
+/// order (a step before a Wi-Fi fix of the same millisecond), the estimate recorded after
+/// every input. `walls` is the floor's wall index (for wall-aware schemes).
+pub fn run_scheme(
+    scheme: &SchemeConfig,
+    walk: &PreparedWalk,
+    walls: Option<Arc<WallIndex>>,
+    seed: u64,
+) -> Result<Track, EvalError> {
+    let is_pdr_baseline = scheme.name() == "pdr";
+    let start = if is_pdr_baseline { walk.true_start() } else { None };
+    let ctx = BuildContext {
+        walls,
+        seed: walk_seed(seed, &walk.walk),
+        start: start.map(|w| w.position),
+    };
+    let mut fuser = scheme.build(&ctx).map_err(|source| EvalError::Scheme {
+        scheme: scheme.name().to_string(),
+        source,
+    })?;
+    let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
+    if let (Some(w), Some(e)) = (start, fuser.estimate()) {
+        track.push((w.t, e.position));
+    }
+    let (mut i, mut j) = (0, 0);
+    let (steps, obs) = (&walk.steps, &walk.observations);
+    while i < steps.len() || j < obs.len() {
+        let take_step = j >= obs.len() || (i < steps.len() && steps[i].t <= obs[j].t);
+        let t = if take_step {
+            fuser.on_step(&steps[i]);
+            i += 1;
+            steps[i - 1].t
+        } else {
+            fuser.on_wifi(&obs[j]);
+            j += 1;
+            obs[j - 1].t
+        };
+        if let Some(e) = fuser.estimate() {
+            track.push((t, e.position));
+        }
+    }
+    Ok(track)
+}
+
+/// Runs `schemes` over prepared walks and scores them.
+pub fn run_prepared(
+    floors: &[FloorInput],
+    prepared: &[PreparedWalk],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    on_done: &(dyn Fn() + Sync),
+) -> Result<EvalReport, EvalError> {
+    let configs: Vec<SchemeConfig> = schemes.iter().map(|s| cfg.scheme(s)).collect::<Result<_, _>>()?;
+    let walls: Vec<Arc<WallIndex>> = floors
+        .iter()
+        .map(|f| Arc::new(WallIndex::new(&f.data.plan.walls)))
+        .collect();
+    let jobs: Vec<(usize, usize)> = (0..prepared.len())
+        .flat_map(|w| (0..configs.len()).map(move |s| (w, s)))
+        .collect();
+    let results: Vec<Result<WalkResult, EvalError>> = jobs
+        .par_iter()
+        .map(|&(w, s)| {
+            let pw = &prepared[w];
+            let track = run_scheme(&configs[s], pw, Some(walls[pw.floor_index].clone()), cfg.seed)?;
+            let from = if cfg.score_from_first_scan { pw.first_scan_t } else { None };
+            let score = score_track(&pw.waypoints, &track, from);
+            on_done();
+            Ok(WalkResult {
+                floor: pw.floor.clone(),
+                walk: pw.walk.clone(),
+                fold: pw.fold,
+                scheme: schemes[s].clone(),
+                score,
+            })
+        })
+        .collect();
+    let walks = results.into_iter().collect::<Result<Vec<_>, _>>()?;
+    Ok(EvalReport::from_walks(
+        schemes.to_vec(),
+        floors.iter().map(|f| f.label.clone()).collect(),
+        walks,
+    ))
+}
+
+/// [`prepare`] then [`run_prepared`].
+pub fn evaluate(
+    floors: &[FloorInput],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    on_done: &(dyn Fn() + Sync),
+) -> Result<EvalReport, EvalError> {
+    let prepared = prepare(floors, cfg)?;
+    run_prepared(floors, &prepared, cfg, schemes, on_done)
+}
+
+/// The track of every scheme on one prepared walk (for plots).
+pub fn tracks_of(
+    floor: &FloorInput,
+    walk: &PreparedWalk,
+    cfg: &EvalConfig,
+    schemes: &[String],
+) -> Result<Vec<(String, Track)>, EvalError> {
+    let walls = Some(Arc::new(WallIndex::new(&floor.data.plan.walls)));
+    schemes
+        .iter()
+        .map(|s| Ok((s.clone(), run_scheme(&cfg.scheme(s)?, walk, walls.clone(), cfg.seed)?)))
+        .collect()
+}
+
+/// The true position of a prepared walk at `t` (for plots), from its waypoints.
+pub fn truth_at(walk: &PreparedWalk, t: TimestampMs) -> Option<Point2> {
+    wipdr_core::walk::interpolate_waypoints(&walk.waypoints, t)
+}

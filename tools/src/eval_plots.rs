@@ -1,0 +1,205 @@
+//! Plots of an evaluation: trajectories against truth on the floor plan, the error CDF per
+//! scheme, and the error against time for a walk.
+
+use crate::plotting::{self, FONT_FAMILY};
+use anyhow::{Result, anyhow};
+use plotters::prelude::*;
+use std::path::Path;
+use wipdr_eval::pipeline::{self, EvalConfig, FloorInput, PreparedWalk};
+use wipdr_eval::report::EvalReport;
+
+/// Writes every plot; returns how many files were written.
+pub fn write_all(
+    dir: &Path,
+    floors: &[FloorInput],
+    prepared: &[PreparedWalk],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    report: &EvalReport,
+    walks_per_floor: usize,
+) -> Result<usize> {
+    std::fs::create_dir_all(dir)?;
+    let mut n = 0;
+    error_cdf(&dir.join("error-cdf.png"), report, schemes)?;
+    n += 1;
+    for (fi, floor) in floors.iter().enumerate() {
+        for pw in prepared.iter().filter(|p| p.floor_index == fi).take(walks_per_floor) {
+            let tracks = pipeline::tracks_of(floor, pw, cfg, schemes)?;
+            let stem = format!("{}-{}", floor.label.replace('/', "-"), pw.walk);
+            trajectories(&dir.join(format!("{stem}-trajectories.png")), floor, pw, &tracks)?;
+            error_over_time(&dir.join(format!("{stem}-error.png")), pw, report, schemes)?;
+            n += 2;
+        }
+    }
+    Ok(n)
+}
+
+fn error_cdf(path: &Path, report: &EvalReport, schemes: &[String]) -> Result<()> {
+    plotting::init_fonts();
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let mut curves = Vec::new();
+    let mut xmax: f64 = 1.0;
+    for s in schemes {
+        let mut e: Vec<f64> = report
+            .walks
+            .iter()
+            .filter(|w| &w.scheme == s)
+            .flat_map(|w| w.score.values())
+            .filter(|v| v.is_finite())
+            .collect();
+        e.sort_by(f64::total_cmp);
+        if let Some(p95) = e.get(e.len() * 95 / 100) {
+            xmax = xmax.max(*p95 * 1.3);
+        }
+        curves.push((s.clone(), e));
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Error CDF at waypoints (pooled)", (FONT_FAMILY, 22))
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..xmax, 0.0..1.0)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("error (m)")
+        .y_desc("fraction of waypoints")
+        .label_style((FONT_FAMILY, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    for (i, (name, e)) in curves.iter().enumerate() {
+        if e.is_empty() {
+            continue;
+        }
+        let n = e.len() as f64;
+        let colour = plotting::palette(i);
+        chart
+            .draw_series(LineSeries::new(
+                e.iter().enumerate().map(|(k, &v)| (v.min(xmax), (k + 1) as f64 / n)),
+                colour.stroke_width(2),
+            ))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT_FAMILY, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    Ok(())
+}
+
+fn trajectories(
+    path: &Path,
+    floor: &FloorInput,
+    walk: &PreparedWalk,
+    tracks: &[(String, wipdr_eval::scoring::Track)],
+) -> Result<()> {
+    let plan = &floor.data.plan;
+    let (w, h) = plotting::floor_canvas_size(plan.width, plan.height, 1400);
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let caption = format!("{} {} — schemes against truth", floor.label, walk.walk);
+    let mut chart = plotting::floor_chart(&root, plan, &caption)?;
+    plotting::draw_floor_plan(&mut chart, plan)?;
+    let truth: Vec<(f64, f64)> = walk.waypoints.iter().map(|p| (p.position.x, p.position.y)).collect();
+    chart
+        .draw_series(std::iter::once(PathElement::new(truth.clone(), BLACK.stroke_width(3))))
+        .map_err(|e| anyhow!("{e}"))?
+        .label("truth (waypoints)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+    chart
+        .draw_series(truth.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
+        .map_err(|e| anyhow!("{e}"))?;
+    for (i, (name, track)) in tracks.iter().enumerate() {
+        let colour = plotting::palette(i);
+        let pts: Vec<(f64, f64)> = track
+            .iter()
+            .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
+            .map(|(_, p)| (p.x.clamp(-50.0, plan.width + 50.0), p.y.clamp(-50.0, plan.height + 50.0)))
+            .collect();
+        chart
+            .draw_series(std::iter::once(PathElement::new(pts, colour.stroke_width(2))))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT_FAMILY, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    Ok(())
+}
+
+fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, schemes: &[String]) -> Result<()> {
+    plotting::init_fonts();
+    let t0 = walk.waypoints.first().map(|w| w.t).unwrap_or(0);
+    let series: Vec<(String, Vec<(f64, f64)>)> = schemes
+        .iter()
+        .filter_map(|s| {
+            report
+                .walks
+                .iter()
+                .find(|w| &w.scheme == s && w.walk == walk.walk && w.floor == walk.floor)
+                .map(|w| {
+                    (
+                        s.clone(),
+                        w.score.errors.iter().map(|&(t, e)| ((t - t0) as f64 / 1000.0, e)).collect(),
+                    )
+                })
+        })
+        .collect();
+    let tmax = series
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.0))
+        .fold(1.0, f64::max);
+    let emax = series
+        .iter()
+        .flat_map(|s| s.1.iter().map(|p| p.1))
+        .fold(1.0, f64::max);
+    let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{} {} — error at waypoints", walk.floor, walk.walk), (FONT_FAMILY, 20))
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..tmax * 1.02, 0.0..emax * 1.05)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("time since the first waypoint (s)")
+        .y_desc("error (m)")
+        .label_style((FONT_FAMILY, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let colour = plotting::palette(i);
+        chart
+            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)).point_size(3))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT_FAMILY, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    Ok(())
+}
