@@ -144,21 +144,41 @@ impl Distance for Euclidean {
 
 impl Distance for Sorensen {
     fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
-        let (mut num, mut den) = (0f32, 0f32);
-        for (x, y) in a.iter().zip(b) {
-            num += (x - y).abs();
-            den += x + y;
+        let (mut num, mut den) = ([0f32; LANES], [0f32; LANES]);
+        let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+        let (mut tn, mut td) = (0f32, 0f32);
+        for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+            tn += (x - y).abs();
+            td += x + y;
         }
+        for (x, y) in ca.zip(cb) {
+            for l in 0..LANES {
+                num[l] += (x[l] - y[l]).abs();
+                den[l] += x[l] + y[l];
+            }
+        }
+        let (num, den) = (lanes_sum(num) + tn, lanes_sum(den) + td);
         if den > 0.0 { num / den } else { 0.0 }
     }
 }
 
 impl Distance for Neyman {
     fn eval(&self, a: &[f32], b: &[f32], _null: f32) -> f32 {
-        a.iter()
-            .zip(b)
-            .map(|(q, r)| (q - r) * (q - r) / r.max(NEYMAN_FLOOR))
-            .sum()
+        let term = |q: f32, r: f32| (q - r) * (q - r) / r.max(NEYMAN_FLOOR);
+        let mut acc = [0f32; LANES];
+        let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+        let tail: f32 = ca
+            .remainder()
+            .iter()
+            .zip(cb.remainder())
+            .map(|(&q, &r)| term(q, r))
+            .sum();
+        for (x, y) in ca.zip(cb) {
+            for l in 0..LANES {
+                acc[l] += term(x[l], y[l]);
+            }
+        }
+        lanes_sum(acc) + tail
     }
 }
 

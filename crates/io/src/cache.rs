@@ -14,17 +14,21 @@
 
 use crate::IoError;
 use crate::floor::{self, FloorData, ReadOptions};
+use crate::geojson::LonLatBox;
+use crate::trace::ParsedWalk;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
+use wipdr_core::FloorPlan;
 
 /// Default cache folder, relative to the working directory.
 pub const DEFAULT_CACHE_DIR: &str = "target/wipdr-cache";
 
 /// Bumped whenever the cached types or the reader's behaviour change.
-const FORMAT_VERSION: u32 = 1;
-const MAGIC: &[u8; 8] = b"WIPDRFC1";
+const FORMAT_VERSION: u32 = 2;
+const MAGIC: &[u8; 8] = b"WIPDRFC2";
 
 /// What [`read_floor_dir_cached_with`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,18 +136,89 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
         tracing::info!(file = %file.display(), "cache is stale, re-reading the floor");
         return None;
     }
-    match bincode::serde::decode_from_slice::<FloorData, _>(body, config()) {
-        Ok((floor, _)) => Some(floor),
-        Err(e) => {
-            tracing::warn!(file = %file.display(), error = %e, "unreadable cache, re-reading");
+    match decode_body(body) {
+        Some(floor) => Some(floor),
+        None => {
+            tracing::warn!(file = %file.display(), "unreadable cache, re-reading");
             None
         }
     }
 }
 
+/// The floor without its walks, as encoded in the cache.
+type FloorHead = (String, PathBuf, f64, f64, FloorPlan, LonLatBox, usize);
+
+/// Splits a `u64`-length-prefixed blob off the front of `bytes`.
+fn take_blob<'a>(bytes: &mut &'a [u8]) -> Option<&'a [u8]> {
+    let (len, rest) = bytes.split_at_checked(8)?;
+    let len = usize::try_from(u64::from_le_bytes(len.try_into().ok()?)).ok()?;
+    let (blob, rest) = rest.split_at_checked(len)?;
+    *bytes = rest;
+    Some(blob)
+}
+
+fn push_blob(out: &mut Vec<u8>, blob: &[u8]) {
+    out.extend_from_slice(&(blob.len() as u64).to_le_bytes());
+    out.extend_from_slice(blob);
+}
+
+/// Body: the head blob, then one blob per walk; the walks decode in parallel.
+fn decode_body(mut body: &[u8]) -> Option<FloorData> {
+    let head = take_blob(&mut body)?;
+    let (head, _): (FloorHead, usize) = bincode::serde::decode_from_slice(head, config()).ok()?;
+    let mut blobs = Vec::new();
+    while !body.is_empty() {
+        blobs.push(take_blob(&mut body)?);
+    }
+    let walks = blobs
+        .par_iter()
+        .map(|b| {
+            bincode::serde::decode_from_slice::<ParsedWalk, _>(b, config())
+                .ok()
+                .map(|(w, _)| w)
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let (name, dir, width, height, plan, lonlat_box, skipped_features) = head;
+    Some(FloorData {
+        name,
+        dir,
+        width,
+        height,
+        plan,
+        lonlat_box,
+        skipped_features,
+        walks,
+    })
+}
+
+fn encode_body(floor: &FloorData) -> Result<Vec<u8>, String> {
+    let head = (
+        &floor.name,
+        &floor.dir,
+        floor.width,
+        floor.height,
+        &floor.plan,
+        &floor.lonlat_box,
+        floor.skipped_features,
+    );
+    let head = bincode::serde::encode_to_vec(head, config()).map_err(|e| e.to_string())?;
+    let walks = floor
+        .walks
+        .par_iter()
+        .map(|w| bincode::serde::encode_to_vec(w, config()).map_err(|e| e.to_string()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut out =
+        Vec::with_capacity(head.len() + walks.iter().map(|w| w.len() + 8).sum::<usize>() + 8);
+    push_blob(&mut out, &head);
+    for w in &walks {
+        push_blob(&mut out, w);
+    }
+    Ok(out)
+}
+
 fn store(file: &Path, key: &CacheKey, floor: &FloorData) -> Result<(), String> {
     let key_bytes = bincode::serde::encode_to_vec(key, config()).map_err(|e| e.to_string())?;
-    let body = bincode::serde::encode_to_vec(floor, config()).map_err(|e| e.to_string())?;
+    let body = encode_body(floor)?;
     if let Some(parent) = file.parent() {
         std::fs::create_dir_all(parent).map_err(|e| e.to_string())?;
     }
@@ -281,7 +356,7 @@ mod tests {
         assert_eq!(o, CacheOutcome::Miss);
         // A corrupted cache file is ignored and rewritten.
         let file = cache_file(&dir, &cache);
-        std::fs::write(&file, b"WIPDRFC1garbage").unwrap();
+        std::fs::write(&file, b"WIPDRFC2garbage").unwrap();
         let (e, o) = read_floor_dir_cached_with(&dir, &cache, &other, &|| {}).unwrap();
         assert_eq!(o, CacheOutcome::Miss);
         assert_eq!(e.walks, d.walks);

@@ -133,9 +133,18 @@ fn main() {
         }
         end_drift.push((p - w.truth.position_at(w.truth.end_ms).unwrap()).norm());
     }
-    let mut turn_angles: Vec<f64> = sim.walks.iter().flat_map(|w| w.truth.turns.iter().map(|t| t.angle.abs().to_degrees())).collect();
+    let mut turn_angles: Vec<f64> = sim
+        .walks
+        .iter()
+        .flat_map(|w| w.truth.turns.iter().map(|t| t.angle.abs().to_degrees()))
+        .collect();
     let turn_count = turn_angles.len();
-    println!("turns: {turn_count}, |angle| min {:.0} deg, median {:.0}, max {:.0}", percentile(&mut turn_angles, 0.0), percentile(&mut turn_angles, 0.5), percentile(&mut turn_angles, 1.0));
+    println!(
+        "turns: {turn_count}, |angle| min {:.0} deg, median {:.0}, max {:.0}",
+        percentile(&mut turn_angles, 0.0),
+        percentile(&mut turn_angles, 0.5),
+        percentile(&mut turn_angles, 1.0)
+    );
     let n = normal.len();
     let mean = normal.iter().sum::<f64>() / n as f64;
     println!(

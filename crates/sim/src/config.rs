@@ -345,6 +345,10 @@ pub struct WalkerConfig {
     pub min_turn_deg: f64,
     /// Largest turn the route takes at a junction, degrees (no U-turns).
     pub max_turn_deg: f64,
+    /// Turns in this band `[lo, hi]` (degrees) are avoided when the junction offers another
+    /// way: they are neither clearly straight nor clearly a turn, which would make the
+    /// turn-detection truth ambiguous.
+    pub avoid_turn_deg: [f64; 2],
     /// A waypoint is labelled about every this many metres, and at every turn.
     pub waypoint_spacing_m: f64,
     /// Standard deviation of the surveyor's labelling error of a waypoint, metres.
@@ -371,6 +375,7 @@ impl Default for WalkerConfig {
             stop_probability: 0.12,
             min_turn_deg: 30.0,
             max_turn_deg: 135.0,
+            avoid_turn_deg: [10.0, 50.0],
             waypoint_spacing_m: 8.0,
             waypoint_noise_m: 0.0,
         }

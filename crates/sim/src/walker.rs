@@ -219,11 +219,21 @@ pub fn random_route(
                 angle::diff(angle::heading_of(g.nodes[next] - here), h).abs()
             })
         };
-        let options: Vec<usize> = g.neighbours[node]
+        let allowed: Vec<usize> = g.neighbours[node]
             .iter()
             .copied()
             .filter(|&n| Some(n) != prev && turn_of(n) <= max_turn)
             .collect();
+        let (lo, hi) = (
+            walker.avoid_turn_deg[0].to_radians(),
+            walker.avoid_turn_deg[1].to_radians(),
+        );
+        let clear: Vec<usize> = allowed
+            .iter()
+            .copied()
+            .filter(|&n| !(lo..=hi).contains(&turn_of(n)))
+            .collect();
+        let options = if clear.is_empty() { allowed } else { clear };
         let next = if options.is_empty() {
             // Least-turning way on, back only from a dead end.
             g.neighbours[node]

@@ -1,0 +1,74 @@
+//! A radio map from real ILC 2.0 walks (site1/F1): built from most walks, queried with the
+//! scans of held-out walks, scored at the interpolated waypoint position. Runs only when
+//! `../shared/data/ilc20` exists; uses a subset of walks to stay fast.
+
+use std::path::PathBuf;
+use wipdr_core::walk::interpolate_waypoints;
+use wipdr_core::Walk;
+use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
+use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Metric, QueryFilter};
+use wipdr_io::floor::walk_files;
+use wipdr_io::trace::read_walk;
+
+fn floor_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ilc20/site1/F1"
+    ));
+    dir.is_dir().then_some(dir)
+}
+
+/// Mean error of WKNN over the held-out walks' scans, and the mean error of always answering
+/// the centroid of the map (the trivial baseline).
+fn score(train: &[Walk], test: &[Walk], config: &WalkMapConfig, metric: Metric) -> (f64, f64, usize) {
+    let (map, report) = build_from_walks(train, config).unwrap();
+    assert_eq!(report.reference_points, map.len());
+    assert!(report.scans_used <= report.scans);
+    let n = map.len() as f64;
+    let centroid = map
+        .points
+        .iter()
+        .fold(wipdr_core::Point2::origin(), |c, p| c + p.position.coords / n);
+    let m = KnnMatcher::new(map, KnnConfig { metric, ..KnnConfig::wknn(5, 1.0) }).unwrap();
+    let filter = QueryFilter {
+        max_age_ms: config.max_entry_age_ms,
+        ..Default::default()
+    };
+    let (mut err, mut base, mut count) = (0.0, 0.0, 0usize);
+    for w in test {
+        for scan in &w.wifi {
+            let Some(truth) = interpolate_waypoints(&w.waypoints, scan.t) else { continue };
+            let Ok(obs) = m.locate_scan(scan, &filter) else { continue };
+            err += (obs.estimate - truth).norm();
+            base += (centroid - truth).norm();
+            count += 1;
+        }
+    }
+    (err / count.max(1) as f64, base / count.max(1) as f64, count)
+}
+
+#[test]
+fn walk_map_beats_centroid_on_held_out_walks() {
+    let Some(dir) = floor_dir() else {
+        eprintln!("skipped: ../shared/data/ilc20 not found");
+        return;
+    };
+    let files = walk_files(&dir).unwrap();
+    let walks: Vec<Walk> = files.iter().take(30).map(|f| read_walk(f).unwrap().walk).collect();
+    let (test, train) = walks.split_at(5);
+    for max_age in [Some(2_000), Some(5_000), Some(10_000), None] {
+        let cfg = WalkMapConfig {
+            max_entry_age_ms: max_age,
+            ..Default::default()
+        };
+        for metric in [Metric::Euclidean, Metric::parse("shared_ap").unwrap()] {
+            let (e, b, n) = score(train, test, &cfg, metric);
+            eprintln!(
+                "site1/F1, 25 train / 5 test walks, max age {max_age:?} ms, {}: WKNN mean {e:.2} m, centroid {b:.2} m, {n} scans",
+                metric.name()
+            );
+            assert!(n > 50, "too few scored scans: {n}");
+            assert!(e.is_finite() && e < 0.7 * b, "WKNN {e:.2} m not clearly better than centroid {b:.2} m");
+        }
+    }
+}
