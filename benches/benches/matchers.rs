@@ -22,7 +22,10 @@ fn uji1() -> Option<(Arc<RadioMap>, Vec<Query>)> {
         "/../../shared/data/fingerprint/UJI1"
     ));
     if !dir.is_dir() {
-        eprintln!("matchers bench: {} not found, UJI1 benches skipped", dir.display());
+        eprintln!(
+            "matchers bench: {} not found, UJI1 benches skipped",
+            dir.display()
+        );
         return None;
     }
     let (train, test) = read_dataset(&dir).ok()?;
@@ -40,7 +43,9 @@ fn small() -> (Arc<RadioMap>, Vec<Query>) {
         .map(|j| ((j % 10) as f64 * 5.5, (j / 10) as f64 * 4.0))
         .collect();
     let rss = |x: f64, y: f64, j: usize| {
-        let d = ((x - aps[j].0).powi(2) + (y - aps[j].1).powi(2)).sqrt().max(1.0);
+        let d = ((x - aps[j].0).powi(2) + (y - aps[j].1).powi(2))
+            .sqrt()
+            .max(1.0);
         let v = -35.0 - 25.0 * d.log10() - ((j * 7) % 5) as f64;
         (v > -95.0).then_some(v.round() as f32)
     };
@@ -58,7 +63,8 @@ fn small() -> (Arc<RadioMap>, Vec<Query>) {
             building: None,
             scans: 1,
         };
-        map.push_point(p, &row, None).expect("valid synthetic point");
+        map.push_point(p, &row, None)
+            .expect("valid synthetic point");
     }
     let queries = (0..200)
         .map(|i| {

@@ -271,7 +271,9 @@ pub fn grid_cross_validated(
     max_queries: usize,
 ) -> Result<Vec<GridPoint>, FingerprintError> {
     if folds < 2 {
-        return Err(FingerprintError::InvalidConfig("need at least 2 folds".into()));
+        return Err(FingerprintError::InvalidConfig(
+            "need at least 2 folds".into(),
+        ));
     }
     let n = train.len();
     let mut groups: HashMap<(i64, i64, Option<i32>), usize> = HashMap::new();

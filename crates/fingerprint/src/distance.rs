@@ -414,10 +414,18 @@ mod tests {
         assert_eq!(t.null_dbm, -101.0);
         assert_eq!(t.apply(Some(-100.0)), 1.0);
         assert_eq!(t.apply(Some(-105.0)), 0.0);
-        let t = Transform::new(Representation::parse("powed").unwrap(), -110.0, Some(-100.0));
+        let t = Transform::new(
+            Representation::parse("powed").unwrap(),
+            -110.0,
+            Some(-100.0),
+        );
         assert_eq!(t.null_value(), 0.0);
         assert!((t.apply(Some(0.0)) - 1.0).abs() < 1e-6);
-        let t = Transform::new(Representation::parse("exponential").unwrap(), -110.0, Some(-100.0));
+        let t = Transform::new(
+            Representation::parse("exponential").unwrap(),
+            -110.0,
+            Some(-100.0),
+        );
         assert!(t.null_value() > 0.0 && t.apply(Some(-50.0)) > t.null_value());
     }
 }

@@ -314,7 +314,10 @@ impl KnnMatcher {
         &self,
         queries: &[Query],
     ) -> Vec<Result<WifiObservation, FingerprintError>> {
-        if !matches!(self.config.metric, Metric::Euclidean | Metric::SquaredEuclidean) {
+        if !matches!(
+            self.config.metric,
+            Metric::Euclidean | Metric::SquaredEuclidean
+        ) {
             return self.locate_batch(queries);
         }
         let n = self.map.len();
@@ -483,13 +486,7 @@ impl Matcher for KnnMatcher {
         let mut dist = vec![0f32; self.map.len()];
         self.distances_into(&q, &mut dist);
         let nb = self.top_k(&dist);
-        observation_from_neighbours(
-            &self.map,
-            query,
-            &nb,
-            self.config.weighting,
-            self.map.len(),
-        )
+        observation_from_neighbours(&self.map, query, &nb, self.config.weighting, self.map.len())
     }
 
     fn locate_batch(&self, queries: &[Query]) -> Vec<Result<WifiObservation, FingerprintError>> {
@@ -517,15 +514,17 @@ impl Matcher for KnnMatcher {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::QueryFilter;
     use crate::distance::{Plgd, SharedAp};
     use crate::radio_map::{ApVocabulary, RadioMapConfig, ReferencePoint};
-    use crate::QueryFilter;
     use proptest::prelude::*;
     use wipdr_core::{Bssid, Point2, WifiEntry, WifiScan};
 
     /// A random map: `n` points, `m` APs, each heard with probability ~0.4.
     fn random_map(seed: u64, n: usize, m: usize) -> RadioMap {
-        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let mut s = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         let mut next = || {
             s = s
                 .wrapping_mul(6364136223846793005)

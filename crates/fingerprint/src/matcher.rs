@@ -164,11 +164,20 @@ mod tests {
             Weighting::InverseDistance { power: 1.0 },
         );
         assert_eq!(w, vec![0.5, 0.5, 0.0]);
-        let w = weights_of(&[(0, 1.0), (1, 3.0)], Weighting::InverseDistance { power: 1.0 });
+        let w = weights_of(
+            &[(0, 1.0), (1, 3.0)],
+            Weighting::InverseDistance { power: 1.0 },
+        );
         assert!((w[0] - 0.75).abs() < 1e-12 && (w[1] - 0.25).abs() < 1e-12);
-        let w = weights_of(&[(0, 1.0), (1, 3.0)], Weighting::InverseDistance { power: 2.0 });
+        let w = weights_of(
+            &[(0, 1.0), (1, 3.0)],
+            Weighting::InverseDistance { power: 2.0 },
+        );
         assert!((w[0] - 0.9).abs() < 1e-12);
-        let w = weights_of(&[(0, 1e-300), (1, 1e-300)], Weighting::InverseDistance { power: 2.0 });
+        let w = weights_of(
+            &[(0, 1e-300), (1, 1e-300)],
+            Weighting::InverseDistance { power: 2.0 },
+        );
         assert!(w.iter().all(|x| x.is_finite()) && (w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     }
 

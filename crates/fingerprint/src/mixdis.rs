@@ -221,7 +221,11 @@ pub fn sig_dis(fp: &Fingerprints<'_>) -> Vec<f64> {
                 continue;
             }
             let (sum, m) = abs_diff_and_shared(a, fp.row(j), fp.not_heard);
-            *v = if m == 0 { f64::INFINITY } else { sum / m as f64 };
+            *v = if m == 0 {
+                f64::INFINITY
+            } else {
+                sum / m as f64
+            };
         }
     });
     out
@@ -357,13 +361,19 @@ mod tests {
 
     fn block(rows: &[[f32; 3]]) -> (Vec<f32>, Vec<Point2>) {
         let rss = rows.iter().flatten().copied().collect();
-        let pos = (0..rows.len()).map(|i| Point2::new(i as f64, 0.0)).collect();
+        let pos = (0..rows.len())
+            .map(|i| Point2::new(i as f64, 0.0))
+            .collect();
         (rss, pos)
     }
 
     #[test]
     fn sigdis_counts_only_shared_aps_and_marks_disjoint_pairs_infinite() {
-        let (rss, pos) = block(&[[-40.0, -110.0, -70.0], [-50.0, -60.0, -110.0], [-110.0, -80.0, -110.0]]);
+        let (rss, pos) = block(&[
+            [-40.0, -110.0, -70.0],
+            [-50.0, -60.0, -110.0],
+            [-110.0, -80.0, -110.0],
+        ]);
         let fp = Fingerprints::new(&rss, 3, &pos, -110.0).unwrap();
         let d = sig_dis(&fp);
         // (0,1): |10| + |50| + |40| over m = 1 shared AP (column 0)
@@ -377,7 +387,11 @@ mod tests {
 
     #[test]
     fn mixdis_is_product_of_normalised_features_in_unit_range() {
-        let (rss, pos) = block(&[[-40.0, -50.0, -70.0], [-45.0, -55.0, -75.0], [-80.0, -50.0, -40.0]]);
+        let (rss, pos) = block(&[
+            [-40.0, -50.0, -70.0],
+            [-45.0, -55.0, -75.0],
+            [-80.0, -50.0, -40.0],
+        ]);
         let fp = Fingerprints::new(&rss, 3, &pos, -110.0).unwrap();
         let m = mix_dis(&fp, &MixDisConfig::default());
         // SigDis: (0,1) = 15/3 = 5, (0,2) = 70/3, (1,2) = 35+5+35 = 75/3 = 25 -> Nor 0, .8772, 1

@@ -106,11 +106,7 @@ impl Query {
         }
         // Sort by column, then most recent and strongest first, so duplicates resolve the
         // same way whatever the entry order.
-        kept.sort_by(|a, b| {
-            a.0.cmp(&b.0)
-                .then(b.2.cmp(&a.2))
-                .then(b.1.total_cmp(&a.1))
-        });
+        kept.sort_by(|a, b| a.0.cmp(&b.0).then(b.2.cmp(&a.2)).then(b.1.total_cmp(&a.1)));
         let before = kept.len();
         kept.dedup_by_key(|e| e.0);
         stats.duplicates = before - kept.len();

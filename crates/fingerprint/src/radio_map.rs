@@ -386,7 +386,8 @@ impl RadioMap {
             out.points.push(self.points[i]);
             out.mean_dbm
                 .extend_from_slice(&self.mean_dbm[i * m..(i + 1) * m]);
-            out.counts.extend_from_slice(&self.counts[i * m..(i + 1) * m]);
+            out.counts
+                .extend_from_slice(&self.counts[i * m..(i + 1) * m]);
             out.spread_db
                 .extend_from_slice(&self.spread_db[i * m..(i + 1) * m]);
         }

@@ -8,8 +8,8 @@
 //! 2 s; default 5 s). Labels are taken at the scan time by default (findings.md: labelling at
 //! the entries' last-seen time is worse). Everything dropped is counted in [`WalkMapReport`].
 
-use crate::radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, is_valid_rssi};
 use crate::FingerprintError;
+use crate::radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, is_valid_rssi};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use wipdr_core::walk::interpolate_waypoints;
@@ -137,9 +137,9 @@ where
                 LabelTime::ScanTime => s.t,
                 LabelTime::MeanLastSeen => (seen_sum / entries.len() as f64).round() as i64,
             };
-            let near_enough = config.max_waypoint_gap_ms.is_none_or(|gap| {
-                walk.waypoints.iter().any(|w| (w.t - t).abs() <= gap)
-            });
+            let near_enough = config
+                .max_waypoint_gap_ms
+                .is_none_or(|gap| walk.waypoints.iter().any(|w| (w.t - t).abs() <= gap));
             let position = match interpolate_waypoints(&walk.waypoints, t) {
                 Some(p) if near_enough => p,
                 _ => {
@@ -203,7 +203,10 @@ where
                 let mean: Vec<Option<f32>> = (0..m)
                     .map(|j| (count[j] > 0).then(|| (sum[j] / f64::from(count[j])) as f32))
                     .collect();
-                let counts: Vec<u16> = count.iter().map(|&c| c.min(u32::from(u16::MAX)) as u16).collect();
+                let counts: Vec<u16> = count
+                    .iter()
+                    .map(|&c| c.min(u32::from(u16::MAX)) as u16)
+                    .collect();
                 let spread: Vec<f32> = (0..m)
                     .map(|j| {
                         if count[j] < 2 {
@@ -240,7 +243,7 @@ fn point(position: Point2, scans: u32, floor: Option<i32>) -> ReferencePoint {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wipdr_core::{WifiEntry, WifiScan, Waypoint};
+    use wipdr_core::{Waypoint, WifiEntry, WifiScan};
 
     fn entry(b: u64, rssi: f64, seen: i64) -> WifiEntry {
         WifiEntry {

@@ -7,8 +7,8 @@
 
 use serde_json::Value;
 use wipdr_fingerprint::affinity::{
-    AffinityConfig, AffinityError, ConvergenceStatus, Preference, SimilarityMatrix, TieBreakNoise,
-    affinity_propagation,
+    AffinityConfig, AffinityError, ConvergenceStatus, Kernel, Preference, SimilarityMatrix,
+    TieBreakNoise, affinity_propagation,
 };
 
 fn load_matrix(case: &Value) -> SimilarityMatrix<f64> {
@@ -17,7 +17,13 @@ fn load_matrix(case: &Value) -> SimilarityMatrix<f64> {
             .as_array()
             .unwrap()
             .iter()
-            .map(|p| p.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect())
+            .map(|p| {
+                p.as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap())
+                    .collect()
+            })
             .collect();
         SimilarityMatrix::from_fn(pts.len(), |i, j| {
             -pts[i]
@@ -37,7 +43,7 @@ fn load_matrix(case: &Value) -> SimilarityMatrix<f64> {
     }
 }
 
-fn config_of(case: &Value) -> AffinityConfig {
+fn config_of(case: &Value, kernel: Kernel) -> AffinityConfig {
     let pref = &case["preference"];
     let preference = match pref["kind"].as_str().unwrap() {
         "global_median" => Preference::GlobalMedian,
@@ -53,6 +59,7 @@ fn config_of(case: &Value) -> AffinityConfig {
         noise: TieBreakNoise::SklearnCompatible {
             seed: case["random_state"].as_u64().unwrap() as u32,
         },
+        kernel,
     }
 }
 
@@ -65,7 +72,16 @@ fn usizes(v: &Value) -> Vec<usize> {
 }
 
 #[test]
-fn matches_scikit_learn_on_every_golden_case() {
+fn dense_kernel_matches_scikit_learn_on_every_golden_case() {
+    check_all(Kernel::Dense);
+}
+
+#[test]
+fn pruned_kernel_matches_scikit_learn_on_every_golden_case() {
+    check_all(Kernel::Pruned);
+}
+
+fn check_all(kernel: Kernel) {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/affinity");
     let mut paths: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
@@ -80,16 +96,23 @@ fn matches_scikit_learn_on_every_golden_case() {
         let case: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let name = case["name"].as_str().unwrap().to_owned();
         let s = load_matrix(&case);
-        let cfg = config_of(&case);
+        let cfg = config_of(&case, kernel);
         let exp = &case["expected"];
         let exp_exemplars = usizes(&exp["exemplars"]);
         let exp_iter = exp["n_iter"].as_u64().unwrap() as usize;
         let exp_converged = exp["converged"].as_bool().unwrap();
         match affinity_propagation(&s, &cfg) {
             Ok(out) => {
-                assert_eq!(out.exemplars, exp_exemplars, "{name}: exemplars");
-                assert_eq!(out.labels, usizes(&exp["labels"]), "{name}: labels");
-                assert_eq!(out.iterations, exp_iter, "{name}: iterations");
+                assert_eq!(
+                    out.exemplars, exp_exemplars,
+                    "{name} ({kernel:?}): exemplars"
+                );
+                assert_eq!(
+                    out.labels,
+                    usizes(&exp["labels"]),
+                    "{name} ({kernel:?}): labels"
+                );
+                assert_eq!(out.iterations, exp_iter, "{name} ({kernel:?}): iterations");
                 assert_eq!(out.converged(), exp_converged, "{name}: convergence");
                 if !exp_converged {
                     assert_eq!(out.status, ConvergenceStatus::NotConverged);
@@ -97,7 +120,10 @@ fn matches_scikit_learn_on_every_golden_case() {
                 }
             }
             Err(AffinityError::NoExemplars { iterations }) => {
-                assert!(exp_exemplars.is_empty(), "{name}: scikit-learn found exemplars");
+                assert!(
+                    exp_exemplars.is_empty(),
+                    "{name}: scikit-learn found exemplars"
+                );
                 assert!(!exp_converged);
                 assert_eq!(iterations, exp_iter, "{name}: iterations");
                 seen_no_exemplar = true;
@@ -121,7 +147,7 @@ fn f32_storage_agrees_with_f64_on_well_separated_data() {
         s64.as_slice().iter().map(|&v| v as f32).collect(),
     )
     .unwrap();
-    let cfg = config_of(&case);
+    let cfg = config_of(&case, Kernel::Dense);
     let a = affinity_propagation(&s64, &cfg).unwrap();
     let b = affinity_propagation(&s32, &cfg).unwrap();
     assert_eq!(a.exemplars, b.exemplars);

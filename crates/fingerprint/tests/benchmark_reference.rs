@@ -49,7 +49,10 @@ fn check(names: &[&str]) {
                 });
             }
         }
-        for (cfg, reference) in [(KnnConfig::nn(), ref_nn), (KnnConfig::wknn(5, 1.0), ref_wknn)] {
+        for (cfg, reference) in [
+            (KnnConfig::nn(), ref_nn),
+            (KnnConfig::wknn(5, 1.0), ref_wknn),
+        ] {
             let m = KnnMatcher::new(map.clone(), cfg).unwrap();
             let (score, _) = evaluate(&m, &queries, &truth);
             let got = score.error_2d.mean;

@@ -3,8 +3,8 @@
 //! `../shared/data/ilc20` exists; uses a subset of walks to stay fast.
 
 use std::path::PathBuf;
-use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::Walk;
+use wipdr_core::walk::interpolate_waypoints;
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Metric, QueryFilter};
 use wipdr_io::floor::walk_files;
@@ -20,7 +20,12 @@ fn floor_dir() -> Option<PathBuf> {
 
 /// Mean error of WKNN over the held-out walks' scans, and the mean error of always answering
 /// the centroid of the map (the trivial baseline).
-fn score(train: &[Walk], test: &[Walk], config: &WalkMapConfig, metric: Metric) -> (f64, f64, usize) {
+fn score(
+    train: &[Walk],
+    test: &[Walk],
+    config: &WalkMapConfig,
+    metric: Metric,
+) -> (f64, f64, usize) {
     let (map, report) = build_from_walks(train, config).unwrap();
     assert_eq!(report.reference_points, map.len());
     assert!(report.scans_used <= report.scans);
@@ -28,8 +33,17 @@ fn score(train: &[Walk], test: &[Walk], config: &WalkMapConfig, metric: Metric) 
     let centroid = map
         .points
         .iter()
-        .fold(wipdr_core::Point2::origin(), |c, p| c + p.position.coords / n);
-    let m = KnnMatcher::new(map, KnnConfig { metric, ..KnnConfig::wknn(5, 1.0) }).unwrap();
+        .fold(wipdr_core::Point2::origin(), |c, p| {
+            c + p.position.coords / n
+        });
+    let m = KnnMatcher::new(
+        map,
+        KnnConfig {
+            metric,
+            ..KnnConfig::wknn(5, 1.0)
+        },
+    )
+    .unwrap();
     let filter = QueryFilter {
         max_age_ms: config.max_entry_age_ms,
         ..Default::default()
@@ -37,8 +51,12 @@ fn score(train: &[Walk], test: &[Walk], config: &WalkMapConfig, metric: Metric) 
     let (mut err, mut base, mut count) = (0.0, 0.0, 0usize);
     for w in test {
         for scan in &w.wifi {
-            let Some(truth) = interpolate_waypoints(&w.waypoints, scan.t) else { continue };
-            let Ok(obs) = m.locate_scan(scan, &filter) else { continue };
+            let Some(truth) = interpolate_waypoints(&w.waypoints, scan.t) else {
+                continue;
+            };
+            let Ok(obs) = m.locate_scan(scan, &filter) else {
+                continue;
+            };
             err += (obs.estimate - truth).norm();
             base += (centroid - truth).norm();
             count += 1;
@@ -54,7 +72,11 @@ fn walk_map_beats_centroid_on_held_out_walks() {
         return;
     };
     let files = walk_files(&dir).unwrap();
-    let walks: Vec<Walk> = files.iter().take(30).map(|f| read_walk(f).unwrap().walk).collect();
+    let walks: Vec<Walk> = files
+        .iter()
+        .take(30)
+        .map(|f| read_walk(f).unwrap().walk)
+        .collect();
     let (test, train) = walks.split_at(5);
     for max_age in [Some(2_000), Some(5_000), Some(10_000), None] {
         let cfg = WalkMapConfig {
@@ -68,7 +90,10 @@ fn walk_map_beats_centroid_on_held_out_walks() {
                 metric.name()
             );
             assert!(n > 50, "too few scored scans: {n}");
-            assert!(e.is_finite() && e < 0.7 * b, "WKNN {e:.2} m not clearly better than centroid {b:.2} m");
+            assert!(
+                e.is_finite() && e < 0.7 * b,
+                "WKNN {e:.2} m not clearly better than centroid {b:.2} m"
+            );
         }
     }
 }

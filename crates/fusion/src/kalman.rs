@@ -25,6 +25,70 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::FusionError;
 
+/// `a b` with loops over the const dimensions (fully unrolled for the small sizes of the
+/// filters; nalgebra's generic product is several times slower at 4x4).
+#[inline(always)]
+fn mm<const A: usize, const B: usize, const C: usize>(
+    a: &SMatrix<f64, A, B>,
+    b: &SMatrix<f64, B, C>,
+) -> SMatrix<f64, A, C> {
+    let (a, bs) = (a.as_slice(), b.as_slice());
+    let mut out = SMatrix::<f64, A, C>::zeros();
+    let o = out.as_mut_slice();
+    for j in 0..C {
+        for k in 0..B {
+            let bkj = bs[j * B + k];
+            for i in 0..A {
+                o[j * A + i] += a[k * A + i] * bkj;
+            }
+        }
+    }
+    out
+}
+
+/// Lower Cholesky factor of a symmetric matrix, `None` unless every pivot is positive and
+/// finite.
+#[inline(always)]
+fn cholesky_lower<const M: usize>(s: &SMatrix<f64, M, M>) -> Option<SMatrix<f64, M, M>> {
+    let mut l = SMatrix::<f64, M, M>::zeros();
+    for j in 0..M {
+        let mut d = s[(j, j)];
+        for k in 0..j {
+            d -= l[(j, k)] * l[(j, k)];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return None;
+        }
+        let ljj = d.sqrt();
+        l[(j, j)] = ljj;
+        for i in j + 1..M {
+            let mut v = s[(i, j)];
+            for k in 0..j {
+                v -= l[(i, k)] * l[(j, k)];
+            }
+            l[(i, j)] = v / ljj;
+        }
+    }
+    Some(l)
+}
+
+/// Inverse of a symmetric positive-definite matrix from its lower Cholesky factor.
+#[inline(always)]
+fn spd_inverse<const M: usize>(l: &SMatrix<f64, M, M>) -> SMatrix<f64, M, M> {
+    // L^-1 by forward substitution, then S^-1 = L^-T L^-1.
+    let mut linv = SMatrix::<f64, M, M>::zeros();
+    for c in 0..M {
+        for i in c..M {
+            let mut v = if i == c { 1.0 } else { 0.0 };
+            for k in c..i {
+                v -= l[(i, k)] * linv[(k, c)];
+            }
+            linv[(i, c)] = v / l[(i, i)];
+        }
+    }
+    mm(&linv.transpose(), &linv)
+}
+
 /// Smallest eigenvalue a covariance keeps after [`enforce_symmetric_pd`].
 pub const MIN_EIGENVALUE: f64 = 1e-9;
 /// Largest eigenvalue a covariance keeps after [`enforce_symmetric_pd`] (keeps it finite).
@@ -40,6 +104,8 @@ pub struct Innovation<const M: usize> {
     pub s: SMatrix<f64, M, M>,
     /// Squared Mahalanobis distance `y^T S^-1 y` (000 eq. 18 times `m`).
     pub mahalanobis2: f64,
+    /// `S^-1`, reused by [`update`].
+    pub s_inv: SMatrix<f64, M, M>,
 }
 
 impl<const M: usize> Innovation<M> {
@@ -57,8 +123,8 @@ pub fn predict<const N: usize>(
     F: &SMatrix<f64, N, N>,
     Q: &SMatrix<f64, N, N>,
 ) {
-    *x = F * *x;
-    *P = F * *P * F.transpose() + Q;
+    *x = mm(F, x);
+    *P = mm(&mm(F, P), &F.transpose()) + Q;
     enforce_symmetric_pd(P);
 }
 
@@ -73,15 +139,21 @@ pub fn innovation<const N: usize, const M: usize>(
     H: &SMatrix<f64, M, N>,
     R: &SMatrix<f64, M, M>,
 ) -> Result<Innovation<M>, FusionError> {
-    let y = z - H * x;
-    let mut s = H * P * H.transpose() + R;
+    let y = z - mm(H, x);
+    let mut s = mm(&mm(H, P), &H.transpose()) + R;
     s = (s + s.transpose()) * 0.5;
-    let chol = s.cholesky().ok_or(FusionError::SingularInnovation)?;
-    let mahalanobis2 = y.dot(&chol.solve(&y));
-    if !mahalanobis2.is_finite() {
+    let l = cholesky_lower(&s).ok_or(FusionError::SingularInnovation)?;
+    let s_inv = spd_inverse(&l);
+    let mahalanobis2 = y.dot(&mm(&s_inv, &y));
+    if !(mahalanobis2.is_finite() && mahalanobis2 >= 0.0) {
         return Err(FusionError::SingularInnovation);
     }
-    Ok(Innovation { y, s, mahalanobis2 })
+    Ok(Innovation {
+        y,
+        s,
+        mahalanobis2,
+        s_inv,
+    })
 }
 
 /// Observation update with a precomputed innovation (000 eq. 15-16), covariance in Joseph form
@@ -95,19 +167,14 @@ pub fn update<const N: usize, const M: usize>(
     R: &SMatrix<f64, M, M>,
     innovation: &Innovation<M>,
 ) -> Result<SMatrix<f64, N, M>, FusionError> {
-    let chol = innovation
-        .s
-        .cholesky()
-        .ok_or(FusionError::SingularInnovation)?;
-    // K = P H^T S^-1  <=>  K^T = S^-1 H P (S and P symmetric).
-    let K: SMatrix<f64, N, M> = chol.solve(&(H * *P)).transpose();
-    let x_new = *x + K * innovation.y;
+    let K: SMatrix<f64, N, M> = mm(&mm(P, &H.transpose()), &innovation.s_inv);
+    let x_new = *x + mm(&K, &innovation.y);
     if x_new.iter().any(|v| !v.is_finite()) {
         return Err(FusionError::NonFiniteState);
     }
     *x = x_new;
-    let I_KH = SMatrix::<f64, N, N>::identity() - K * H;
-    *P = I_KH * *P * I_KH.transpose() + K * R * K.transpose();
+    let I_KH = SMatrix::<f64, N, N>::identity() - mm(&K, H);
+    *P = mm(&mm(&I_KH, P), &I_KH.transpose()) + mm(&mm(&K, R), &K.transpose());
     enforce_symmetric_pd(P);
     Ok(K)
 }
@@ -121,15 +188,12 @@ pub fn enforce_symmetric_pd<const N: usize>(P: &mut SMatrix<f64, N, N>) {
         return;
     }
     *P = (*P + P.transpose()) * 0.5;
-    let diag_ok = (0..N).all(|i| P[(i, i)] >= MIN_EIGENVALUE && P[(i, i)] <= MAX_EIGENVALUE);
-    if diag_ok && P.cholesky().is_some() {
-        // Cheap path: already PD with sane diagonal; check the smallest pivot is not tiny.
-        if let Some(ch) = P.cholesky() {
-            let l = ch.l();
-            if (0..N).all(|i| l[(i, i)] * l[(i, i)] >= MIN_EIGENVALUE) {
-                return;
-            }
-        }
+    let diag_ok = (0..N).all(|i| P[(i, i)] <= MAX_EIGENVALUE);
+    if diag_ok
+        && let Some(l) = cholesky_lower(P)
+        && (0..N).all(|i| l[(i, i)] * l[(i, i)] >= MIN_EIGENVALUE)
+    {
+        return;
     }
     // Rare path: a dynamic eigen-decomposition (fixed-size `symmetric_eigen` needs
     // type-level bounds that would leak into every caller).
@@ -173,7 +237,7 @@ pub fn f_quantile_inf(m: usize, alpha: f64) -> Result<f64, FusionError> {
 pub fn is_symmetric_pd<const N: usize>(P: &SMatrix<f64, N, N>) -> bool {
     let scale = P.amax().max(1.0);
     let symmetric = (P - P.transpose()).amax() <= 1e-9 * scale;
-    symmetric && P.iter().all(|v| v.is_finite()) && P.cholesky().is_some()
+    symmetric && P.iter().all(|v| v.is_finite()) && cholesky_lower(P).is_some()
 }
 
 #[cfg(test)]
@@ -183,6 +247,18 @@ mod tests {
 
     type M4 = SMatrix<f64, 4, 4>;
     type V4 = SVector<f64, 4>;
+
+    #[test]
+    fn small_helpers_match_nalgebra() {
+        let a = M4::from_fn(|i, j| (i * 4 + j) as f64 * 0.3 - 1.0);
+        let b = SMatrix::<f64, 4, 2>::from_fn(|i, j| (i + 2 * j) as f64 - 0.5);
+        assert!((mm(&a, &b) - a * b).amax() < 1e-12);
+        let s = a * a.transpose() + M4::identity();
+        let l = cholesky_lower(&s).unwrap();
+        assert!((l * l.transpose() - s).amax() < 1e-9);
+        assert!((spd_inverse(&l) * s - M4::identity()).amax() < 1e-9);
+        assert!(cholesky_lower(&(-M4::identity())).is_none());
+    }
 
     #[test]
     fn f_quantile_matches_table() {

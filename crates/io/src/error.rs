@@ -1,4 +1,7 @@
 //! The error type of every reader and writer in this crate.
+//!
+//! Following the Rust convention, a variant's message does not repeat its cause: print the
+//! whole chain (`{:#}` with anyhow, or walk `Error::source`).
 
 use std::path::PathBuf;
 use thiserror::Error;
@@ -8,7 +11,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum IoError {
     /// An operating-system or decompression error while reading or writing a file.
-    #[error("{path}: line {line}: {source}", path = path.display())]
+    #[error("{path}: read failed after line {line}", path = path.display())]
     Read {
         /// The file.
         path: PathBuf,
@@ -19,7 +22,7 @@ pub enum IoError {
         source: std::io::Error,
     },
     /// A file or directory could not be opened, listed or written.
-    #[error("{path}: {source}", path = path.display())]
+    #[error("{path}: cannot open, list or write", path = path.display())]
     File {
         /// The file or directory.
         path: PathBuf,
@@ -70,7 +73,7 @@ pub enum IoError {
         limit: usize,
     },
     /// A JSON file that is not valid JSON.
-    #[error("{path}: invalid JSON: {source}", path = path.display())]
+    #[error("{path}: invalid JSON", path = path.display())]
     JsonSyntax {
         /// The file.
         path: PathBuf,

@@ -185,7 +185,9 @@ impl FingerprintTable {
 }
 
 /// Reads a benchmark CSV file.
-pub fn read_fingerprint_csv(path: impl AsRef<Path>) -> Result<FingerprintTable, FingerprintCsvError> {
+pub fn read_fingerprint_csv(
+    path: impl AsRef<Path>,
+) -> Result<FingerprintTable, FingerprintCsvError> {
     let path = path.as_ref();
     let file = std::fs::File::open(path).map_err(|source| FingerprintCsvError::Io {
         path: path.to_path_buf(),
@@ -408,7 +410,10 @@ mod tests {
 
     #[test]
     fn reads_rows_and_not_detected() {
-        let t = read(&format!("{HEADER}-60,100,1.5,2,3.7,1,0\r\n-70.5,-80,0,0,0,0,2\n")).unwrap();
+        let t = read(&format!(
+            "{HEADER}-60,100,1.5,2,3.7,1,0\r\n-70.5,-80,0,0,0,0,2\n"
+        ))
+        .unwrap();
         assert_eq!(t.n_rows(), 2);
         assert_eq!(t.n_aps(), 2);
         assert_eq!(t.rss_at(0, 1), None);
@@ -451,7 +456,10 @@ mod tests {
         }
         assert!(e.to_string().contains("t.csv"));
         let e = read(&format!("{HEADER}-60,-70,1,2,0,1.5,0\n")).unwrap_err();
-        assert!(matches!(e, FingerprintCsvError::BadNumber { column: 6, .. }));
+        assert!(matches!(
+            e,
+            FingerprintCsvError::BadNumber { column: 6, .. }
+        ));
     }
 
     #[test]
@@ -459,12 +467,22 @@ mod tests {
         for bad in ["-130", "5", "NaN", "inf"] {
             let e = read(&format!("{HEADER}-60,{bad},1,2,0,0,0\n")).unwrap_err();
             assert!(
-                matches!(e, FingerprintCsvError::OutOfRange { line: 2, column: 2, .. }),
+                matches!(
+                    e,
+                    FingerprintCsvError::OutOfRange {
+                        line: 2,
+                        column: 2,
+                        ..
+                    }
+                ),
                 "{bad}: {e}"
             );
         }
         let e = read(&format!("{HEADER}-60,-60,NaN,2,0,0,0\n")).unwrap_err();
-        assert!(matches!(e, FingerprintCsvError::OutOfRange { column: 3, .. }));
+        assert!(matches!(
+            e,
+            FingerprintCsvError::OutOfRange { column: 3, .. }
+        ));
     }
 
     #[test]
@@ -474,7 +492,10 @@ mod tests {
             read("ap_000,x,y,z,floor\n"),
             Err(FingerprintCsvError::Header { .. })
         ));
-        assert!(matches!(read("x,y\n"), Err(FingerprintCsvError::Header { .. })));
+        assert!(matches!(
+            read("x,y\n"),
+            Err(FingerprintCsvError::Header { .. })
+        ));
     }
 
     #[test]

@@ -43,13 +43,15 @@ pub enum SkipKind {
     MissingFields,
     /// A record with more values than its type allows.
     ExtraFields,
-    /// A first column that is not an integer time in ms.
+    /// A first column that is not an integer time in ms within +-2^53
+    /// ([`MAX_ABS_TIME_MS`]).
     BadTime,
-    /// A value that is not a finite number (or an integer where one is needed).
+    /// A value that is not a finite number (or an integer where one is needed, or a
+    /// last-seen time beyond [`MAX_ABS_TIME_MS`]).
     BadNumber,
     /// A BSSID that is not six `:`-separated hex bytes.
     BadBssid,
-    /// A header whose `startTime`/`endTime` is not an integer.
+    /// A header whose `startTime`/`endTime` is not an integer within [`MAX_ABS_TIME_MS`].
     BadHeader,
 }
 
@@ -330,6 +332,18 @@ fn glued_time_start(token: &str) -> Option<usize> {
         .then_some(start)
 }
 
+/// Largest accepted time magnitude, ms: 2^53, so that times and their differences stay exact
+/// in `f64` and never overflow `i64` arithmetic downstream.
+pub const MAX_ABS_TIME_MS: i64 = 1 << 53;
+
+/// An integer time (Unix ms) within [`MAX_ABS_TIME_MS`].
+fn parse_time(s: &str) -> Option<i64> {
+    s.trim()
+        .parse::<i64>()
+        .ok()
+        .filter(|t| (-MAX_ABS_TIME_MS..=MAX_ABS_TIME_MS).contains(t))
+}
+
 fn parse_f64(s: &str) -> Result<f64, SkipKind> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
@@ -392,13 +406,13 @@ impl<'l> Parser<'l> {
             };
             let text = || Some(value.to_string());
             match key.trim() {
-                "startTime" => match value.trim().parse() {
-                    Ok(t) => meta.start_time = Some(t),
-                    Err(_) => bad = true,
+                "startTime" => match parse_time(value) {
+                    Some(t) => meta.start_time = Some(t),
+                    None => bad = true,
                 },
-                "endTime" => match value.trim().parse() {
-                    Ok(t) => meta.end_time = Some(t),
-                    Err(_) => bad = true,
+                "endTime" => match parse_time(value) {
+                    Some(t) => meta.end_time = Some(t),
+                    None => bad = true,
                 },
                 "SiteID" => meta.site_id = text(),
                 "SiteName" => meta.site_name = text(),
@@ -446,7 +460,7 @@ impl<'l> Parser<'l> {
             *names.entry(name).or_default() += 1;
             return Ok(());
         };
-        let Ok(t) = fields[0].trim().parse::<i64>() else {
+        let Some(t) = parse_time(fields[0]) else {
             self.skip(SkipKind::BadTime, line_no);
             return Ok(());
         };
@@ -454,8 +468,10 @@ impl<'l> Parser<'l> {
             Ok(true) => {
                 if t < self.max_time {
                     self.report.out_of_order += 1;
-                    self.report.max_lateness_ms =
-                        self.report.max_lateness_ms.max(self.max_time - t);
+                    self.report.max_lateness_ms = self
+                        .report
+                        .max_lateness_ms
+                        .max(self.max_time.saturating_sub(t));
                 }
                 self.max_time = self.max_time.max(t);
                 // Counting per type by name: a small fixed set of keys.
@@ -543,7 +559,7 @@ impl<'l> Parser<'l> {
                     rssi_dbm: parse_f64(v[4]).map_err(Ok)?,
                     distance: parse_f64(v[5]).map_err(Ok)?,
                     mac: v[6].to_string(),
-                    seen_ms: v[7].trim().parse().map_err(|_| Ok(SkipKind::BadNumber))?,
+                    seen_ms: parse_time(v[7]).ok_or(Ok(SkipKind::BadNumber))?,
                 };
                 self.walk.beacons.push(sample);
             }
@@ -562,10 +578,7 @@ impl<'l> Parser<'l> {
                     .trim()
                     .parse()
                     .map_err(|_| Ok(SkipKind::BadNumber))?;
-                let last_seen_ms: i64 = v[n - 1]
-                    .trim()
-                    .parse()
-                    .map_err(|_| Ok(SkipKind::BadNumber))?;
+                let last_seen_ms = parse_time(v[n - 1]).ok_or(Ok(SkipKind::BadNumber))?;
                 let ssid = if n == 5 {
                     v[0].to_string()
                 } else {
@@ -985,6 +998,7 @@ mod tests {
 1000\tTYPE_ACCELEROMETER\t1.0\t2.0\n\
 1000\tTYPE_ACCELEROMETER\t1.0\t2.0\t3.0\t3\t9\n\
 abc\tTYPE_WAYPOINT\t1.0\t2.0\n\
+-9223372036854775808\tTYPE_WAYPOINT\t1.0\t2.0\n\
 1000\tTYPE_WAYPOINT\tNaN\t2.0\n\
 1000\tTYPE_WIFI\tx\tnot-a-mac\t-49\t2422\t1000\n\
 #\tstartTime:soon\n\
@@ -994,11 +1008,11 @@ abc\tTYPE_WAYPOINT\t1.0\t2.0\n\
         assert_eq!(r.skipped_of(SkipKind::Blank), 1);
         assert_eq!(r.skipped_of(SkipKind::MissingFields), 2);
         assert_eq!(r.skipped_of(SkipKind::ExtraFields), 1);
-        assert_eq!(r.skipped_of(SkipKind::BadTime), 1);
+        assert_eq!(r.skipped_of(SkipKind::BadTime), 2);
         assert_eq!(r.skipped_of(SkipKind::BadNumber), 1);
         assert_eq!(r.skipped_of(SkipKind::BadBssid), 1);
         assert_eq!(r.skipped_of(SkipKind::BadHeader), 1);
-        assert_eq!(r.skipped[&SkipKind::MissingFields].first_lines, vec![2, 8]);
+        assert_eq!(r.skipped[&SkipKind::MissingFields].first_lines, vec![2, 9]);
         assert_eq!(r.records_kept(), 0);
     }
 

@@ -22,7 +22,13 @@ fn finite() -> impl Strategy<Value = f64> {
 }
 
 fn time() -> impl Strategy<Value = i64> {
-    prop_oneof![1_500_000_000_000i64..1_700_000_000_000, any::<i64>()]
+    const MAX: i64 = wipdr_io::trace::MAX_ABS_TIME_MS;
+    prop_oneof![
+        1_500_000_000_000i64..1_700_000_000_000,
+        -MAX..=MAX,
+        Just(MAX),
+        Just(-MAX)
+    ]
 }
 
 /// Strings as phones write them: no tab, CR or LF (the writer turns those into spaces).
@@ -267,6 +273,12 @@ proptest! {
     }
 
     #[test]
+    fn arbitrary_times_never_panic(t in any::<i64>(), u in any::<i64>(), s in any::<i64>()) {
+        let text = format!("{t}\tTYPE_WAYPOINT\t1\t2\n{u}\tTYPE_WAYPOINT\t1\t2\n{s}\tTYPE_WIFI\tx\t00:00:00:00:00:01\t-50\t2412\t{t}\n#\tstartTime:{u}\n");
+        read_any(text.as_bytes());
+    }
+
+    #[test]
     fn arbitrary_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..2000)) {
         read_any(&bytes);
     }
@@ -298,5 +310,9 @@ fn truncated_gzip_is_a_read_error() {
     let gz = gzip(&written(&w));
     let e = read_walk_from(&gz[..gz.len() / 2], "cut.txt.gz", &Limits::default()).unwrap_err();
     assert!(matches!(e, IoError::Read { .. }), "{e}");
-    assert!(e.to_string().starts_with("cut.txt.gz: line "), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("cut.txt.gz: read failed after line "),
+        "{e}"
+    );
 }

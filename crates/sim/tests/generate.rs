@@ -244,3 +244,51 @@ fn written_floor_reads_back_with_the_real_readers() {
     assert_eq!(test.n_rows(), s.survey.test.len());
     assert_eq!(train.n_aps(), s.world.radio.access_points.len());
 }
+
+/// Azimuth (clockwise from north) of the phone's `y` axis from a rotation vector: Android's
+/// `getOrientation` azimuth `atan2(R01, R11)`.
+fn azimuth(q: [f64; 4]) -> f64 {
+    let [w, x, y, z] = q;
+    let r01 = 2.0 * (x * y - w * z);
+    let r11 = 1.0 - 2.0 * (x * x + z * z);
+    r01.atan2(r11)
+}
+
+#[test]
+fn rotation_vector_gyroscope_and_magnetometer_follow_the_true_heading() {
+    let s = sim();
+    for w in &s.walks {
+        let imu = &w.walk.imu;
+        let t = &w.truth;
+        // Rotation-vector azimuth against the true step headings.
+        let mut diffs: Vec<f64> = t
+            .steps
+            .iter()
+            .map(|st| {
+                let k = imu.rotation_vector.partition_point(|r| r.t <= st.t).min(imu.rotation_vector.len() - 1);
+                angle::diff(azimuth(imu.rotation_vector[k].quaternion()), st.heading).abs()
+            })
+            .collect();
+        diffs.sort_by(f64::total_cmp);
+        let median = diffs[diffs.len() / 2].to_degrees();
+        assert!(median < 8.0, "{}: median rotation-vector heading error {median} deg", t.walk_id);
+        // Gyroscope z over each turn: a right turn (positive angle) reads negative, scaled by
+        // the tilt of the phone's z axis.
+        for turn in &t.turns {
+            let (a, b) = (turn.t_start - 1000, turn.t_end + 1000);
+            let g = &imu.gyroscope;
+            let integral: f64 = g
+                .windows(2)
+                .filter(|p| p[0].t >= a && p[1].t <= b)
+                .map(|p| p[0].v[2] * (p[1].t - p[0].t) as f64 / 1000.0)
+                .sum();
+            let expected = -turn.angle * t.phone.pitch.cos() * t.phone.roll.cos();
+            assert!((integral - expected).abs() < 0.2, "{}: turn {turn:?}: gyro z integral {integral}, expected {expected}", t.walk_id);
+        }
+        // Magnetometer magnitude near the Earth field's (46 µT) away from disturbances.
+        let mut norms: Vec<f64> = imu.magnetometer.iter().map(|m| m.norm()).collect();
+        norms.sort_by(f64::total_cmp);
+        let med = norms[norms.len() / 2];
+        assert!((med - 46.1).abs() < 5.0, "median |B| {med}");
+    }
+}

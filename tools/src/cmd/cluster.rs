@@ -20,7 +20,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 use wipdr_core::Point2;
 use wipdr_fingerprint::affinity::{
-    AffinityConfig, Clustering, Preference, SimilarityMatrix, TieBreakNoise,
+    AffinityConfig, Clustering, Kernel, Preference, SimilarityMatrix, TieBreakNoise,
     affinity_propagation_owned,
 };
 use wipdr_fingerprint::mixdis::{Fingerprints, MixDisConfig, SimilarityKind, similarity};
@@ -42,6 +42,15 @@ pub enum PrecisionArg {
     F32,
     /// 8-byte floats (scikit-learn's precision).
     F64,
+}
+
+/// Message-passing kernel.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum KernelArg {
+    /// Exact pruned form, only S stored (default).
+    Pruned,
+    /// Dense R and A, scikit-learn's operations one for one.
+    Dense,
 }
 
 /// Arguments of `wipdr cluster`.
@@ -72,6 +81,9 @@ pub struct Args {
     /// Iterations with unchanged exemplars needed to stop.
     #[arg(long, default_value_t = 15)]
     pub convergence_iter: usize,
+    /// Message-passing kernel.
+    #[arg(long, value_enum, default_value = "pruned")]
+    pub kernel: KernelArg,
     /// Matrix precision.
     #[arg(long, value_enum, default_value = "f32")]
     pub precision: PrecisionArg,
@@ -127,6 +139,10 @@ pub fn run(args: Args) -> Result<()> {
         convergence_iter: args.convergence_iter,
         preference: parse_preference(&args.preference)?,
         noise: TieBreakNoise::SklearnCompatible { seed: 0 },
+        kernel: match args.kernel {
+            KernelArg::Pruned => Kernel::Pruned,
+            KernelArg::Dense => Kernel::Dense,
+        },
     };
     let kind = match args.similarity {
         SimilarityArg::Mixdis => SimilarityKind::MixDis,
@@ -164,6 +180,7 @@ pub fn run(args: Args) -> Result<()> {
             "seconds": seconds,
             "similarity_seconds": similarity_seconds,
             "threads": rayon::current_num_threads(),
+            "kernel": format!("{:?}", args.kernel).to_lowercase(),
         });
         println!("{out}");
     } else {
