@@ -1,7 +1,8 @@
 //! Affinity propagation (paper 001 §2.2) on the side-by-side matrices of
 //! `benches/peers/affinity_speed.py`: the first N = 2,000 and 3,951 rows of TUT3's `test.csv`,
 //! signal similarity (negative squared Euclidean, not heard = -110 dBm), median preference,
-//! damping 0.9, max_iter 200, convergence_iter 15; `f32` and `f64` storage. The similarity
+//! damping 0.9, max_iter 200, convergence_iter 15; pruned kernel in `f32` and `f64`, dense
+//! kernel in `f32`. The similarity
 //! matrix is built once outside the timed loop, as scikit-learn's `fit` receives it.
 //!
 //! `cargo bench -p wipdr-benches --bench clustering`. Skips (with a message) when
@@ -12,7 +13,7 @@ use std::hint::black_box;
 use std::path::PathBuf;
 use wipdr_core::Point2;
 use wipdr_fingerprint::affinity::{
-    AffinityConfig, Preference, SimilarityMatrix, affinity_propagation,
+    AffinityConfig, Kernel, Preference, SimilarityMatrix, affinity_propagation,
 };
 use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
 use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_fingerprint_csv};
@@ -44,6 +45,10 @@ fn bench_affinity(c: &mut Criterion) {
         preference: Preference::GlobalMedian,
         ..AffinityConfig::default()
     };
+    let dense = AffinityConfig {
+        kernel: Kernel::Dense,
+        ..config.clone()
+    };
     let mut group = c.benchmark_group("affinity_propagation_tut3");
     group.sample_size(10);
     for n in [2000usize, 3951] {
@@ -55,11 +60,14 @@ fn bench_affinity(c: &mut Criterion) {
             s32.as_slice().iter().map(|&v| f64::from(v)).collect(),
         )
         .unwrap();
-        group.bench_with_input(BenchmarkId::new("f32", n), &s32, |b, s| {
+        group.bench_with_input(BenchmarkId::new("pruned_f32", n), &s32, |b, s| {
             b.iter(|| black_box(affinity_propagation(black_box(s), &config).unwrap()))
         });
-        group.bench_with_input(BenchmarkId::new("f64", n), &s64, |b, s| {
+        group.bench_with_input(BenchmarkId::new("pruned_f64", n), &s64, |b, s| {
             b.iter(|| black_box(affinity_propagation(black_box(s), &config).unwrap()))
+        });
+        group.bench_with_input(BenchmarkId::new("dense_f32", n), &s32, |b, s| {
+            b.iter(|| black_box(affinity_propagation(black_box(s), &dense).unwrap()))
         });
     }
     group.finish();

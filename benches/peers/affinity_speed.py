@@ -51,6 +51,7 @@ def main():
     p.add_argument("--damping", type=float, default=0.9)
     p.add_argument("--max-iter", type=int, default=200)
     p.add_argument("--convergence-iter", type=int, default=15)
+    p.add_argument("--precision", nargs="+", default=["f32"], help="wipdr matrix precision(s)")
     a = p.parse_args()
     for n in a.rows:
         x = load_rss(a.csv, n)
@@ -74,18 +75,19 @@ def main():
             f"clusters={len(sk)} converged={converged}",
             flush=True,
         )
-        if a.wipdr:
+        for precision in a.precision if a.wipdr else []:
             cmd = [
                 a.wipdr, "cluster", "--csv", a.csv, "--rows", str(n),
                 "--similarity", "signal", "--preference", "median",
                 "--damping", str(a.damping), "--max-iter", str(a.max_iter),
                 "--convergence-iter", str(a.convergence_iter), "--json",
+                "--precision", precision,
             ]
             out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
             res = json.loads(out.strip().splitlines()[-1])
             rs = sorted(res["exemplars"])
             print(
-                f"wipdr   N={n} seconds={res['seconds']:.3f} iterations={res['iterations']} "
+                f"wipdr {precision} N={n} seconds={res['seconds']:.3f} iterations={res['iterations']} "
                 f"clusters={len(rs)} converged={res['converged']} "
                 f"speedup={dt / res['seconds']:.1f}x same_exemplars={rs == sk}",
                 flush=True,

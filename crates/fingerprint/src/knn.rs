@@ -224,7 +224,22 @@ impl KnnMatcher {
         let q = self.transformed_query(query)?;
         let mut out = vec![0f32; self.map.len()];
         self.distances_into(&q, &mut out);
+        if self.squared_keys() {
+            out.iter_mut().for_each(|d| *d = d.sqrt());
+        }
         Ok(out)
+    }
+
+    /// Whether the engine's rank keys are squared Euclidean distances standing for Euclidean
+    /// ones (the square root is taken for the K winners only).
+    fn squared_keys(&self) -> bool {
+        matches!(
+            self.engine,
+            Engine::Sparse {
+                kind: SparseKind::Euclidean,
+                ..
+            }
+        )
     }
 
     fn distances_into(&self, q: &[f32], out: &mut [f32]) {
@@ -265,12 +280,7 @@ impl KnnMatcher {
                     }
                 }
                 match kind {
-                    SparseKind::Euclidean => {
-                        for (o, &n) in out.iter_mut().zip(norms) {
-                            *o = (q_norm + n - 2.0 * *o).max(0.0).sqrt();
-                        }
-                    }
-                    SparseKind::Squared => {
+                    SparseKind::Euclidean | SparseKind::Squared => {
                         for (o, &n) in out.iter_mut().zip(norms) {
                             *o = (q_norm + n - 2.0 * *o).max(0.0);
                         }
@@ -303,8 +313,12 @@ impl KnnMatcher {
 
     /// The `k` nearest `(index, distance)` pairs of a distance vector, sorted by distance
     /// then index. NaN distances (impossible for valid maps) sort last.
-    fn top_k(&self, dist: &[f32]) -> Vec<(usize, f64)> {
-        top_k(dist, self.config.k)
+    fn top_k(&self, keys: &[f32]) -> Vec<(usize, f64)> {
+        let mut nb = top_k(keys, self.config.k);
+        if self.squared_keys() {
+            nb.iter_mut().for_each(|(_, d)| *d = d.sqrt());
+        }
+        nb
     }
 
     /// Locates a batch of Euclidean (raw) queries with one matrix product per chunk of
@@ -367,7 +381,7 @@ impl KnnMatcher {
                         let d2 = (q_norm + ref_norms[i] - 2.0 * col[i]).max(0.0);
                         *d = if squared { d2 } else { d2.sqrt() };
                     }
-                    let nb = self.top_k(&dist);
+                    let nb = top_k(&dist, self.config.k);
                     out.push(observation_from_neighbours(
                         &self.map,
                         query,
@@ -396,6 +410,9 @@ impl KnnMatcher {
 
 /// The `k` smallest `(index, distance)` of `dist`, sorted by distance then index.
 pub fn top_k(dist: &[f32], k: usize) -> Vec<(usize, f64)> {
+    if k <= SMALL_K {
+        return top_k_small(dist, k);
+    }
     let mut idx: Vec<(f32, u32)> = dist
         .iter()
         .enumerate()
@@ -412,6 +429,34 @@ pub fn top_k(dist: &[f32], k: usize) -> Vec<(usize, f64)> {
     }
     idx.sort_unstable_by(cmp);
     idx.into_iter()
+        .map(|(d, i)| (i as usize, f64::from(d)))
+        .collect()
+}
+
+/// Up to this k, top-k keeps a sorted array while scanning once (one comparison per point).
+const SMALL_K: usize = 64;
+
+fn top_k_small(dist: &[f32], k: usize) -> Vec<(usize, f64)> {
+    let mut best: Vec<(f32, u32)> = Vec::with_capacity(k + 1);
+    if k == 0 {
+        return Vec::new();
+    }
+    let mut worst = f32::INFINITY;
+    for (i, &d) in dist.iter().enumerate() {
+        let d = if d.is_nan() { f32::INFINITY } else { d };
+        // Strictly smaller than the current k-th: equal keys keep the lower index.
+        if best.len() < k || d < worst {
+            let pos = best.partition_point(|&(b, _)| b <= d);
+            best.insert(pos, (d, i as u32));
+            if best.len() > k {
+                best.pop();
+            }
+            if best.len() == k {
+                worst = best[k - 1].0;
+            }
+        }
+    }
+    best.into_iter()
         .map(|(d, i)| (i as usize, f64::from(d)))
         .collect()
 }
@@ -646,6 +691,21 @@ mod tests {
             let ix: Vec<usize> = x.candidates.iter().map(|c| c.index).collect();
             let iy: Vec<usize> = y.candidates.iter().map(|c| c.index).collect();
             assert_eq!(ix, iy);
+        }
+    }
+
+    #[test]
+    fn top_k_small_equals_select() {
+        let d: Vec<f32> = (0..500).map(|i| ((i * 37) % 101) as f32).collect();
+        for k in [1, 5, 64, 200] {
+            let mut want: Vec<(usize, f64)> = d
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| (i, f64::from(x)))
+                .collect();
+            want.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            want.truncate(k);
+            assert_eq!(top_k(&d, k), want);
         }
     }
 

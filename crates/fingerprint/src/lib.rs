@@ -63,3 +63,6 @@ pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
 
 pub mod affinity;
 pub mod mixdis;
+pub mod cluster_search;
+pub mod ap_index;
+pub mod med;

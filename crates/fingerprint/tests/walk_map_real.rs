@@ -72,12 +72,13 @@ fn walk_map_beats_centroid_on_held_out_walks() {
         return;
     };
     let files = walk_files(&dir).unwrap();
-    let walks: Vec<Walk> = files
-        .iter()
-        .take(30)
-        .map(|f| read_walk(f).unwrap().walk)
-        .collect();
-    let (test, train) = walks.split_at(5);
+    let walks: Vec<Walk> = files.iter().map(|f| read_walk(f).unwrap().walk).collect();
+    // Every fifth walk held out.
+    let (mut test, mut train) = (Vec::new(), Vec::new());
+    for (i, w) in walks.into_iter().enumerate() {
+        if i % 5 == 0 { test.push(w) } else { train.push(w) }
+    }
+    let (test, train) = (&test[..], &train[..]);
     for max_age in [Some(2_000), Some(5_000), Some(10_000), None] {
         let cfg = WalkMapConfig {
             max_entry_age_ms: max_age,
@@ -86,12 +87,12 @@ fn walk_map_beats_centroid_on_held_out_walks() {
         for metric in [Metric::Euclidean, Metric::parse("shared_ap").unwrap()] {
             let (e, b, n) = score(train, test, &cfg, metric);
             eprintln!(
-                "site1/F1, 25 train / 5 test walks, max age {max_age:?} ms, {}: WKNN mean {e:.2} m, centroid {b:.2} m, {n} scans",
+                "site1/F1, every 5th walk held out, max age {max_age:?} ms, {}: WKNN mean {e:.2} m, centroid {b:.2} m, {n} scans",
                 metric.name()
             );
-            assert!(n > 50, "too few scored scans: {n}");
+            assert!(n > 200, "too few scored scans: {n}");
             assert!(
-                e.is_finite() && e < 0.7 * b,
+                e.is_finite() && e < 0.5 * b,
                 "WKNN {e:.2} m not clearly better than centroid {b:.2} m"
             );
         }

@@ -89,6 +89,10 @@ fn spd_inverse<const M: usize>(l: &SMatrix<f64, M, M>) -> SMatrix<f64, M, M> {
     mm(&linv.transpose(), &linv)
 }
 
+/// Entries of a covariance smaller than this are flushed to zero (far below any meaningful
+/// variance, far above the subnormal range).
+pub const TINY: f64 = 1e-150;
+
 /// Smallest eigenvalue a covariance keeps after [`enforce_symmetric_pd`].
 pub const MIN_EIGENVALUE: f64 = 1e-9;
 /// Largest eigenvalue a covariance keeps after [`enforce_symmetric_pd`] (keeps it finite).
@@ -188,6 +192,13 @@ pub fn enforce_symmetric_pd<const N: usize>(P: &mut SMatrix<f64, N, N>) {
         return;
     }
     *P = (*P + P.transpose()) * 0.5;
+    // Flush vanishing correlations to zero: they would decay into subnormal numbers, which
+    // make every later product about 20 times slower (measured: 0.2 -> 4.4 us per EKF step).
+    for v in P.iter_mut() {
+        if v.abs() < TINY {
+            *v = 0.0;
+        }
+    }
     let diag_ok = (0..N).all(|i| P[(i, i)] <= MAX_EIGENVALUE);
     if diag_ok
         && let Some(l) = cholesky_lower(P)

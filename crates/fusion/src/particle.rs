@@ -457,7 +457,10 @@ impl Fuser for ParticleFilter {
         let max = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         if max.is_finite() {
             for (lw, w) in log_w.iter_mut().zip(self.weights.iter_mut()) {
-                *w = (*lw - max).exp(); // the best particle gets 1: the sum is >= 1
+                // the best particle gets 1, so the sum is >= 1; negligible weights are
+                // flushed to zero (subnormal numbers slow every later operation)
+                let e = (*lw - max).exp();
+                *w = if e < 1e-200 { 0.0 } else { e };
             }
             self.normalise();
         }

@@ -67,7 +67,10 @@ fn robust_filter_beats_the_plain_ekf() {
     for base in [EkfConfig::default(), matched()] {
         let ekf = pooled(&SchemeConfig::Ekf(base.clone()), &walks);
         let rkf = pooled(&SchemeConfig::Rkf(base.clone()), &walks);
-        println!("R = {}: ekf RMS {:.2}, rkf RMS {:.2}", base.r_wifi_m2, ekf.rms, rkf.rms);
+        println!(
+            "R = {}: ekf RMS {:.2}, rkf RMS {:.2}",
+            base.r_wifi_m2, ekf.rms, rkf.rms
+        );
         assert!(rkf.rms < ekf.rms);
     }
 }
@@ -82,7 +85,10 @@ fn robust_filter_recovers_from_a_wrong_first_fix() {
             .unwrap();
         let tail = &r.step_errors[r.step_errors.len() * 3 / 4..];
         let mean = tail.iter().sum::<f64>() / tail.len() as f64;
-        assert!(mean < 8.0, "walk {k}: mean error {mean} in the last quarter");
+        assert!(
+            mean < 8.0,
+            "walk {k}: mean error {mean} in the last quarter"
+        );
     }
 }
 

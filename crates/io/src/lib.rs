@@ -32,7 +32,9 @@
 //! (8192), JSON file size (64 MiB), GeoJSON features (100 000) and vertices (2 M). Crossing a
 //! limit is a typed [`IoError`] naming the file and line or field: a line of megabytes, a
 //! gzip bomb, a scan of millions of entries or an absurd GeoJSON never exhaust memory or hang.
-//! Libraries here never print; they log with `tracing` and return [`IoError`].
+//! Times beyond +-2^53 ms ([`trace::MAX_ABS_TIME_MS`]) are skipped as bad records, so time
+//! arithmetic downstream cannot overflow. Libraries here never print; they log with
+//! `tracing` and return [`IoError`].
 //!
 //! ## Example
 //!

@@ -385,7 +385,7 @@ impl Pdr {
         if self.kf.is_initialised() {
             self.kf.update(h);
         } else {
-            self.kf.initialise(h, 0.0);
+            self.kf.initialise(h, self.last_rate.unwrap_or(0.0));
         }
         if self.kf.is_initialised() {
             let a = self.kf.angle().unwrap_or(h);

@@ -62,6 +62,7 @@ fn synthetic_acceptance() {
     let (mut len_true, mut len_est) = (0.0, 0.0);
     let (mut tp_det, mut n_eps, mut tp_truth, mut n_turns) = (0usize, 0usize, 0usize, 0usize);
     let mut worst_count = 0.0f64;
+    let mut per_step_rel = Vec::new();
     for (walk, truth) in &test {
         let (steps, diag) = Pdr::run_detailed(cfg, walk);
         assert_eq!(diag.steps_without_heading, 0);
@@ -71,6 +72,17 @@ fn synthetic_acceptance() {
             .max((steps.len() as f64 - truth.steps.len() as f64).abs() / truth.steps.len() as f64);
         len_true += truth.steps.iter().map(|s| s.length).sum::<f64>();
         len_est += steps.iter().map(|s| s.event.length).sum::<f64>();
+        // Per step: the nearest true heel strike within 300 ms.
+        for s in &steps {
+            let i = truth.steps.partition_point(|x| x.t < s.event.t);
+            let best = [i.wrapping_sub(1), i]
+                .into_iter()
+                .filter_map(|j| truth.steps.get(j))
+                .min_by_key(|x| (x.t - s.event.t).abs());
+            if let Some(x) = best.filter(|x| (x.t - s.event.t).abs() <= 300) {
+                per_step_rel.push((s.event.length - x.length).abs() / x.length);
+            }
+        }
         let eps = turn_episodes(&steps);
         let turns: Vec<(i64, i64)> = truth.turns.iter().map(|t| (t.t_start, t.t_end)).collect();
         n_eps += eps.len();
@@ -82,6 +94,8 @@ fn synthetic_acceptance() {
     let mean_len_true = len_true / n_true as f64;
     let mean_len_est = len_est / n_det as f64;
     let len_err = (mean_len_est - mean_len_true).abs() / mean_len_true;
+    let per_step = per_step_rel.iter().sum::<f64>() / per_step_rel.len().max(1) as f64;
+    println!("per matched step: mean |relative length error| {:.2} % over {} steps", 100.0 * per_step, per_step_rel.len());
     let precision = tp_det as f64 / n_eps.max(1) as f64;
     let recall = tp_truth as f64 / n_turns.max(1) as f64;
     println!(
@@ -96,4 +110,31 @@ fn synthetic_acceptance() {
     assert!(len_err < 0.05, "step length error {len_err}");
     assert!(precision >= 0.95, "turn precision {precision}");
     assert!(recall >= 0.95, "turn recall {recall}");
+}
+
+/// Calibration of the turn threshold `T` (paper 001 eq. 17) on synthetic walks other than
+/// the acceptance set: `cargo test -p wipdr-pdr --test synthetic -- --ignored --nocapture`.
+#[test]
+#[ignore = "calibration sweep, run by hand"]
+fn turn_threshold_sweep() {
+    let walks = simulate(11, 10);
+    for t in [0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5] {
+        let mut cfg = PdrConfig::default();
+        cfg.motion.turn_threshold_rad = t;
+        let (mut tp_det, mut n_eps, mut tp_truth, mut n_turns) = (0, 0, 0, 0);
+        for (walk, truth) in &walks {
+            let steps = Pdr::run_detailed(cfg, walk).0;
+            let eps = turn_episodes(&steps);
+            let turns: Vec<(i64, i64)> = truth.turns.iter().map(|t| (t.t_start, t.t_end)).collect();
+            n_eps += eps.len();
+            n_turns += turns.len();
+            tp_det += eps.iter().filter(|e| turns.iter().any(|t| overlaps(**e, *t, 500))).count();
+            tp_truth += turns.iter().filter(|t| eps.iter().any(|e| overlaps(*e, **t, 500))).count();
+        }
+        println!(
+            "T = {t:.2} rad: precision {:.3} ({tp_det}/{n_eps}), recall {:.3} ({tp_truth}/{n_turns})",
+            tp_det as f64 / n_eps.max(1) as f64,
+            tp_truth as f64 / n_turns.max(1) as f64
+        );
+    }
 }

@@ -53,7 +53,7 @@ impl Default for SimConfig {
             gross_error_rate: 0.0,
             start_time_ms: 1_600_000_000_000,
             walk_spacing_s: 600.0,
-            trajectory_rate_hz: 10.0,
+            trajectory_rate_hz: 5.0,
             floor: FloorConfig::default(),
             radio: RadioConfig::default(),
             scan: ScanConfig::default(),
@@ -413,6 +413,11 @@ pub struct ImuConfig {
     pub vertical_second_harmonic: f64,
     /// Accelerometer white noise, m/s².
     pub accel_noise: f64,
+    /// Standard deviation of the hand's jitter acceleration (a first-order Gauss-Markov
+    /// process on each phone axis), m/s².
+    pub hand_jitter_accel: f64,
+    /// Correlation time of the hand's jitter, seconds.
+    pub hand_jitter_time_s: f64,
     /// Gyroscope white noise, rad/s.
     pub gyro_noise: f64,
     /// Standard deviation of the per-walk gyroscope bias on each axis, rad/s.
@@ -464,6 +469,8 @@ impl Default for ImuConfig {
             forward_accel_ratio: 0.35,
             vertical_second_harmonic: 0.05,
             accel_noise: 0.12,
+            hand_jitter_accel: 0.3,
+            hand_jitter_time_s: 0.08,
             gyro_noise: 0.01,
             gyro_bias_std: 0.003,
             mag_noise: 0.6,

@@ -9,7 +9,7 @@
 //! - accelerometer = `R^T (a + g)`: the vertical acceleration of the step bounce
 //!   `(h/2)(2 pi f)² [cos(2 pi u) + 4 c2 cos(4 pi u)]` (peak at each heel strike `u = 0`, ramped
 //!   in over the first step of a bout), a forward surge, a lateral sway, the centripetal
-//!   acceleration `v² kappa` in turns, plus white noise;
+//!   acceleration `v² kappa` in turns, plus the hand's jitter (Gauss-Markov) and white noise;
 //! - gyroscope = the body rate from the orientation's time derivative, plus a per-walk bias and
 //!   white noise (a right turn reads negative on `z`, as on Android);
 //! - magnetometer = `R^T (B_earth + B_local(p))` plus noise, `B_local` a sum of Gaussian bumps
@@ -184,6 +184,9 @@ impl ImuScene<'_> {
         let rho = (-dt / c.rotation_vector_drift_time_s.max(dt)).exp();
         let drift_sigma = c.rotation_vector_drift_deg.to_radians();
         let mut yaw_error = drift_sigma * rng.normal();
+        let jitter_rho = (-dt / c.hand_jitter_time_s.max(1e-3)).exp();
+        let jitter_gain = c.hand_jitter_accel * (1.0 - jitter_rho * jitter_rho).sqrt();
+        let mut hand = [0.0; 3];
         let gyro_est_bias: [f64; 3] = [0; 3].map(|_: i32| 0.5 * c.gyro_bias_std * rng.normal());
         let hard_iron: [f64; 3] = [0; 3].map(|_: i32| 20.0 * rng.normal());
         let mut out = ImuStreams::default();
@@ -194,6 +197,9 @@ impl ImuScene<'_> {
             let jitter = rng.uniform(-c.timestamp_jitter_ms, c.timestamp_jitter_ms);
             let dropped = rng.chance(c.drop_probability);
             let noise: [f64; 12] = [0; 12].map(|_: i32| rng.normal());
+            for h in &mut hand {
+                *h = jitter_rho * *h + jitter_gain * rng.normal();
+            }
             if dropped {
                 continue;
             }
@@ -207,7 +213,8 @@ impl ImuScene<'_> {
             let r = self.rotation(t, 0.0);
             let rt = r.transpose();
             let f = rt * (self.linear_acceleration(t) + g);
-            let acc = [0, 1, 2].map(|a| quantise(f[a] + c.accel_noise * noise[a], c.accel_quantum));
+            let acc = [0, 1, 2]
+                .map(|a| quantise(f[a] + hand[a] + c.accel_noise * noise[a], c.accel_quantum));
             let inc = self.rotation(t - h, 0.0).transpose() * self.rotation(t + h, 0.0);
             let omega = inc.scaled_axis() / (2.0 * h);
             let gyro = [0, 1, 2].map(|a| {

@@ -108,6 +108,14 @@ pub enum SimError {
     /// The fingerprint CSV writer failed.
     #[error(transparent)]
     Csv(#[from] wipdr_io::fingerprint_csv::FingerprintCsvError),
+    /// A truth file could not be parsed.
+    #[error("parsing {path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        message: String,
+    },
     /// Serialising output failed.
     #[error("serialising {path}: {message}")]
     Serialise {

@@ -3,9 +3,11 @@
 //! Times are Unix milliseconds like the walk's records; positions in the floor's metre frame;
 //! headings in radians clockwise from `+y` in the map frame, wrapped to `(-pi, pi]`.
 
+use crate::SimError;
 use crate::imu::PhonePose;
 use crate::walker::WalkerParams;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 use wipdr_core::{Point2, TimestampMs};
 
 /// One true step: the heel strike that ends it.
@@ -125,6 +127,45 @@ impl WalkTruth {
     pub fn is_gross_error(&self, t: TimestampMs) -> bool {
         self.gross_errors.iter().any(|g| g.t == t)
     }
+}
+
+/// Reads one truth file (`truth/<walk id>.json`).
+pub fn read_walk_truth(path: impl AsRef<Path>) -> Result<WalkTruth, SimError> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|e| SimError::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Reads the truth of every walk of a written floor folder (`<floor>/truth/*.json` except
+/// `world.json`), sorted by walk id (the order of the walk files).
+pub fn read_floor_truths(floor_dir: impl AsRef<Path>) -> Result<Vec<WalkTruth>, SimError> {
+    let dir = floor_dir.as_ref().join("truth");
+    let io = |source| SimError::Io {
+        path: dir.clone(),
+        source,
+    };
+    let mut paths = Vec::new();
+    for entry in std::fs::read_dir(&dir).map_err(io)? {
+        let p = entry.map_err(io)?.path();
+        let is_walk = p.extension().is_some_and(|e| e == "json")
+            && p.file_name().is_some_and(|n| n != "world.json");
+        if is_walk {
+            paths.push(p);
+        }
+    }
+    paths.sort();
+    let mut truths: Vec<WalkTruth> = paths
+        .iter()
+        .map(read_walk_truth)
+        .collect::<Result<_, _>>()?;
+    truths.sort_by(|a, b| a.walk_id.cmp(&b.walk_id));
+    Ok(truths)
 }
 
 /// Rounds to `1/scale` (scale an integer power of ten) so that JSON stays short and exact.

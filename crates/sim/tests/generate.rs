@@ -239,6 +239,13 @@ fn written_floor_reads_back_with_the_real_readers() {
         );
     }
     assert_eq!(data.plan.units.len(), s.world.floor.plan.units.len());
+    let truths = wipdr_sim::truth::read_floor_truths(&floor_dir).unwrap();
+    assert_eq!(truths.len(), s.walks.len());
+    for (t, w) in truths.iter().zip(&s.walks) {
+        assert_eq!(t.walk_id, w.truth.walk_id);
+        assert_eq!(t.steps.len(), w.truth.steps.len());
+        assert_eq!(t.gross_errors, w.truth.gross_errors);
+    }
     let (train, test) = wipdr_io::fingerprint_csv::read_dataset(floor_dir.join("survey")).unwrap();
     assert_eq!(train.n_rows(), s.survey.train.len());
     assert_eq!(test.n_rows(), s.survey.test.len());
@@ -265,13 +272,20 @@ fn rotation_vector_gyroscope_and_magnetometer_follow_the_true_heading() {
             .steps
             .iter()
             .map(|st| {
-                let k = imu.rotation_vector.partition_point(|r| r.t <= st.t).min(imu.rotation_vector.len() - 1);
+                let k = imu
+                    .rotation_vector
+                    .partition_point(|r| r.t <= st.t)
+                    .min(imu.rotation_vector.len() - 1);
                 angle::diff(azimuth(imu.rotation_vector[k].quaternion()), st.heading).abs()
             })
             .collect();
         diffs.sort_by(f64::total_cmp);
         let median = diffs[diffs.len() / 2].to_degrees();
-        assert!(median < 8.0, "{}: median rotation-vector heading error {median} deg", t.walk_id);
+        assert!(
+            median < 8.0,
+            "{}: median rotation-vector heading error {median} deg",
+            t.walk_id
+        );
         // Gyroscope z over each turn: a right turn (positive angle) reads negative, scaled by
         // the tilt of the phone's z axis.
         for turn in &t.turns {
@@ -283,12 +297,54 @@ fn rotation_vector_gyroscope_and_magnetometer_follow_the_true_heading() {
                 .map(|p| p[0].v[2] * (p[1].t - p[0].t) as f64 / 1000.0)
                 .sum();
             let expected = -turn.angle * t.phone.pitch.cos() * t.phone.roll.cos();
-            assert!((integral - expected).abs() < 0.2, "{}: turn {turn:?}: gyro z integral {integral}, expected {expected}", t.walk_id);
+            assert!(
+                (integral - expected).abs() < 0.2,
+                "{}: turn {turn:?}: gyro z integral {integral}, expected {expected}",
+                t.walk_id
+            );
         }
         // Magnetometer magnitude near the Earth field's (46 µT) away from disturbances.
         let mut norms: Vec<f64> = imu.magnetometer.iter().map(|m| m.norm()).collect();
         norms.sort_by(f64::total_cmp);
         let med = norms[norms.len() / 2];
         assert!((med - 46.1).abs() < 5.0, "median |B| {med}");
+    }
+}
+
+mod invariants {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 8, .. ProptestConfig::default() })]
+
+        /// For any seed: walks stay walkable, streams are time-sorted, every scan entry is
+        /// at most the cache lifetime old, and steps add up to the distance walked.
+        #[test]
+        fn any_seed_gives_a_sane_walk(seed in any::<u64>(), gross in 0.0f64..0.5) {
+            let mut cfg = SimConfig { walks: 1, duration_s: 20.0, duration_jitter_s: 0.0, gross_error_rate: gross, ..SimConfig::default() };
+            cfg.survey.test_points = 1;
+            let world = wipdr_sim::SimWorld::build(&cfg, seed).unwrap();
+            let w = world.walk(0);
+            let plan = &world.floor.plan;
+            for s in &w.truth.trajectory {
+                prop_assert!(plan.is_walkable(Point2::new(s.x, s.y)));
+            }
+            prop_assert!(w.walk.imu.accelerometer.windows(2).all(|p| p[0].t < p[1].t));
+            prop_assert!(w.walk.wifi.windows(2).all(|p| p[0].t < p[1].t));
+            prop_assert!(w.walk.waypoints.windows(2).all(|p| p[0].t < p[1].t));
+            for scan in &w.walk.wifi {
+                for e in &scan.entries {
+                    let age = e.age_ms(scan.t);
+                    prop_assert!((0..=30_000).contains(&age));
+                    prop_assert!(e.rssi_dbm.is_finite());
+                }
+            }
+            let walked: f64 = w.truth.steps.iter().map(|s| s.arc_length).sum();
+            prop_assert!((walked - w.truth.distance_m).abs() < 1e-9);
+            let all_finite = w.walk.imu.accelerometer.iter().chain(&w.walk.imu.gyroscope).chain(&w.walk.imu.magnetometer)
+                .all(|s| s.v.iter().all(|v| v.is_finite()));
+            prop_assert!(all_finite);
+        }
     }
 }

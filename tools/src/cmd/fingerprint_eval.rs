@@ -12,11 +12,14 @@
 //! 1/d^w, 0 = uniform); `tuned-cv` picks the literature k-NN configuration by
 //! cross-validation on train.csv (honest), `tuned-test` picks it on test.csv (as the papers
 //! did: optimistic, labelled so).
+//! `apc` (cluster search, paper 001 §2.3), `apindex` (AP-matching index, paper 002 eq. 6) and
+//! `med` (single-scan form of paper 004 eq. 11) run with their default settings.
 
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_fingerprint::benchmark::{self, Grid, Truth};
+use wipdr_fingerprint::cluster_search::{ClusteringMatchersConfig, build_matcher, is_clustering_matcher};
 use wipdr_fingerprint::{
     KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap, RadioMapConfig,
     Representation, Weighting,
@@ -125,7 +128,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Validate every spec before any work.
     for spec in &args.matcher {
-        parse_spec(spec, args.k)?;
+        if !is_clustering_matcher(spec) {
+            parse_spec(spec, args.k)?;
+        }
     }
     let mut rows: Vec<Row> = Vec::new();
     let bar = crate::progress::bar(
@@ -166,6 +171,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             eprintln!("{name}: {skipped} test rows without usable APs skipped");
         }
         for spec in &args.matcher {
+            // Issue 4's matchers (apc, apindex, med single-scan), default settings.
+            if let Some(m) = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())? {
+                let (score, qps) = benchmark::evaluate(m.as_ref(), &queries, &truth);
+                rows.push(Row {
+                    dataset: name.clone(),
+                    matcher: spec.clone(),
+                    config: m.name(),
+                    selection: "fixed".to_string(),
+                    mean_2d: score.error_2d.mean,
+                    mean_3d: score.mean_3d,
+                    p50: score.error_2d.p50,
+                    p75: score.error_2d.p75,
+                    p95: score.error_2d.p95,
+                    floor_hit: score.floor_hit,
+                    visited_fraction: score.visited_fraction,
+                    queries_per_second: qps,
+                    queries: queries.len(),
+                    failed: score.failed,
+                });
+                bar.inc(1);
+                continue;
+            }
             let (cfg, selection) = match parse_spec(spec, args.k)? {
                 Some(cfg) => (cfg, "fixed".to_string()),
                 None => {

@@ -301,3 +301,54 @@ fn print_report(r: &ParseReport, with_lines: bool) {
         r.max_lateness_ms as f64 / 1000.0
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wipdr_core::{FloorPlan, Point2, Polygon, Waypoint};
+    use wipdr_io::{LonLatBox, floor, geojson};
+
+    #[test]
+    fn inspects_a_floor_and_a_walk() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("site").join("F1");
+        std::fs::create_dir_all(dir.join(floor::WALKS_DIR)).unwrap();
+        floor::write_floor_info(dir.join(floor::FLOOR_INFO), 20.0, 10.0).unwrap();
+        let outline = Polygon::new(
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(20.0, 0.0),
+                Point2::new(20.0, 10.0),
+                Point2::new(0.0, 10.0),
+            ],
+            vec![],
+        )
+        .unwrap();
+        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
+        geojson::write_floor_plan(
+            dir.join(floor::GEOJSON_MAP),
+            &plan,
+            LonLatBox::around(8.0, 47.0, 20.0, 10.0),
+        )
+        .unwrap();
+        let mut walk = Walk::default();
+        for i in 0..3 {
+            walk.waypoints.push(Waypoint {
+                t: 1000 * i,
+                position: Point2::new(1.0 + i as f64, 5.0),
+            });
+        }
+        let walk_file = dir.join(floor::WALKS_DIR).join("w.txt.gz");
+        trace::write_walk_file(&walk, &walk_file).unwrap();
+        let args = |paths: Vec<PathBuf>, no_cache| Args {
+            paths,
+            no_cache,
+            cache_dir: tmp.path().join("cache"),
+            brief: false,
+            limits: None,
+        };
+        run(args(vec![dir.clone()], false)).unwrap();
+        run(args(vec![dir.clone(), walk_file], true)).unwrap();
+        assert!(run(args(vec![tmp.path().join("missing.txt")], true)).is_err());
+    }
+}

@@ -42,7 +42,7 @@ pub struct Args {
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Draw PDR against truth for some walks of each floor into this folder (SVG).
+    /// Draw PDR against truth for some walks of each floor into this folder (PNG).
     #[arg(long)]
     pub plot_dir: Option<PathBuf>,
     /// How many walks per floor to plot (the first by name).
@@ -478,9 +478,9 @@ fn plot_walks(
     order.sort_by(|&a, &b| runs[a].id.cmp(&runs[b].id));
     for &i in order.iter().take(n) {
         let r = &runs[i];
-        let file = dir.join(format!("{}_{}.svg", floor.name.replace('/', "_"), r.id));
+        let file = dir.join(format!("{}_{}.png", floor.name.replace('/', "_"), r.id));
         let (w, h) = crate::plotting::floor_canvas_size(floor.plan.width, floor.plan.height, 900);
-        let root = SVGBackend::new(&file, (w, h)).into_drawing_area();
+        let root = BitMapBackend::new(&file, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
         let mut chart = crate::plotting::floor_chart(
             &root,
