@@ -5,6 +5,8 @@
 //! kernel in `f32`. The similarity
 //! matrix is built once outside the timed loop, as scikit-learn's `fit` receives it.
 //!
+//! Also the matchers `apc`, `apindex`, `med` on UJI1 beside brute-force WKNN.
+//!
 //! `cargo bench -p wipdr-benches --bench clustering`. Skips (with a message) when
 //! `../shared/data` is absent.
 
@@ -16,7 +18,10 @@ use wipdr_fingerprint::affinity::{
     AffinityConfig, Kernel, Preference, SimilarityMatrix, affinity_propagation,
 };
 use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
-use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_fingerprint_csv};
+use std::sync::Arc;
+use wipdr_fingerprint::cluster_search::{ClusteringMatchersConfig, build_matcher};
+use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
+use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_dataset, read_fingerprint_csv};
 
 fn data_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/fingerprint"))
@@ -73,5 +78,44 @@ fn bench_affinity(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_affinity);
+/// Matchers on UJI1 beside brute-force WKNN: one `locate` per test row (first 300 rows),
+/// single-threaded, same queries for every matcher.
+fn bench_matchers_uji1(c: &mut Criterion) {
+    let dir = data_dir().join("UJI1");
+    if !dir.join("train.csv").exists() {
+        eprintln!("skipping: {} not found", dir.display());
+        return;
+    }
+    let (train, test) = read_dataset(&dir).unwrap();
+    let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).unwrap());
+    let filter = QueryFilter::default();
+    let queries: Vec<Query> = (0..test.n_rows().min(300))
+        .filter_map(|i| Query::from_row(test.row(i), &map, &filter).ok())
+        .collect();
+    let mut matchers: Vec<(String, Box<dyn Matcher>)> = vec![(
+        "wknn_brute_force".into(),
+        Box::new(KnnMatcher::new(map.clone(), KnnConfig::default()).unwrap()),
+    )];
+    for spec in ["apc", "apc:sim=signal,clusters=3", "apindex", "med"] {
+        let m = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())
+            .unwrap()
+            .unwrap();
+        matchers.push((spec.replace([':', ',', '='], "_"), m));
+    }
+    let mut group = c.benchmark_group("matchers_uji1_300_queries");
+    group.sample_size(10);
+    group.throughput(criterion::Throughput::Elements(queries.len() as u64));
+    for (name, m) in &matchers {
+        group.bench_function(name.as_str(), |b| {
+            b.iter(|| {
+                for q in &queries {
+                    black_box(m.locate(black_box(q)).unwrap());
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_affinity, bench_matchers_uji1);
 criterion_main!(benches);

@@ -18,10 +18,16 @@ fn real_walk() -> Option<Walk> {
         "/../../shared/data/ilc20/site1/F1/path_data_files"
     ));
     if !dir.is_dir() {
-        eprintln!("pdr bench: {} not found, real-walk bench skipped", dir.display());
+        eprintln!(
+            "pdr bench: {} not found, real-walk bench skipped",
+            dir.display()
+        );
         return None;
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir).ok()?.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
     files.sort();
     files
         .iter()
@@ -30,12 +36,18 @@ fn real_walk() -> Option<Walk> {
 }
 
 fn synthetic_walk() -> Walk {
-    let mut cfg = wipdr_sim::SimConfig::default();
-    cfg.walks = 1;
-    cfg.duration_s = 60.0;
-    cfg.duration_jitter_s = 0.0;
+    let mut cfg = wipdr_sim::SimConfig {
+        walks: 1,
+        duration_s: 60.0,
+        duration_jitter_s: 0.0,
+        ..Default::default()
+    };
     cfg.survey.test_points = 5;
-    wipdr_sim::generate(&cfg, 1).expect("simulation").walks.remove(0).walk
+    wipdr_sim::generate(&cfg, 1)
+        .expect("simulation")
+        .walks
+        .remove(0)
+        .walk
 }
 
 fn bench_pdr(c: &mut Criterion) {

@@ -47,7 +47,7 @@ impl WifiObservation {
             return 0.0;
         }
         let wsum: f64 = self.candidates.iter().map(|c| c.weight).sum();
-        if !(wsum > 0.0) {
+        if wsum.is_nan() || wsum <= 0.0 {
             return 0.0;
         }
         let v: f64 = self

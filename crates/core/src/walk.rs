@@ -250,10 +250,19 @@ mod tests {
 
     #[test]
     fn replay_is_time_ordered() {
-        let mut walk = Walk::default();
-        walk.waypoints = vec![wp(5, 0.0, 0.0), wp(1, 1.0, 1.0)];
-        walk.wifi = vec![WifiScan { t: 3, entries: vec![] }];
-        walk.imu.accelerometer = vec![Vec3Sample { t: 3, v: [0.0; 3], accuracy: 3 }];
+        let mut walk = Walk {
+            waypoints: vec![wp(5, 0.0, 0.0), wp(1, 1.0, 1.0)],
+            wifi: vec![WifiScan {
+                t: 3,
+                entries: vec![],
+            }],
+            ..Walk::default()
+        };
+        walk.imu.accelerometer = vec![Vec3Sample {
+            t: 3,
+            v: [0.0; 3],
+            accuracy: 3,
+        }];
         walk.sort_streams();
         let r = walk.replay();
         let ts: Vec<i64> = r.iter().map(|r| r.t()).collect();

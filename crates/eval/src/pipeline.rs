@@ -172,7 +172,7 @@ impl PreparedWalk {
 
 /// Steps of `walk` under `cfg`.
 pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
-    Pdr::run(cfg.clone(), walk)
+    Pdr::run(*cfg, walk)
 }
 
 /// Fits step length and heading offset on `training` walks (their waypoints are training
@@ -180,7 +180,7 @@ pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
 pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
     let detailed: Vec<_> = training
         .par_iter()
-        .map(|w| Pdr::run_detailed(base.clone(), w).0)
+        .map(|w| Pdr::run_detailed(*base, w).0)
         .collect();
     let walks: Vec<WalkSteps<'_>> = detailed
         .iter()
@@ -190,7 +190,7 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
             waypoints: &w.waypoints,
         })
         .collect();
-    let mut out = base.clone();
+    let mut out = *base;
     out.step_length = fit_step_length(base.step_length, &walks, cal);
     if cal.fit_heading_offset
         && let Some(off) = fit_heading_offset(&out.step_length, base.heading.source, &walks, cal)
@@ -254,7 +254,7 @@ fn prepare_fold(
     let pdr_cfg = if cfg.calibrate_pdr {
         calibrate_pdr(&cfg.pdr, &cfg.calibration, &training)
     } else {
-        cfg.pdr.clone()
+        cfg.pdr
     };
     let tests: Vec<(usize, &Walk)> = walks
         .iter()

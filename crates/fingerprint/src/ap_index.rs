@@ -166,7 +166,14 @@ impl ApIndexMatcher {
 
 impl Matcher for ApIndexMatcher {
     fn name(&self) -> String {
-        "apindex".into()
+        let c = &self.config;
+        format!(
+            "apindex(top={},threshold={},moving={},k={})",
+            c.top_offline,
+            if c.apply_threshold { "on" } else { "off" },
+            c.assume_moving,
+            c.k
+        )
     }
 
     fn map(&self) -> &RadioMap {

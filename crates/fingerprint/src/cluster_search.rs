@@ -347,7 +347,12 @@ impl ClusterSearchMatcher {
 
 impl Matcher for ClusterSearchMatcher {
     fn name(&self) -> String {
-        "apc".into()
+        let c = &self.config;
+        format!(
+            "apc(n={},clusters={},slack={},sim={:?},centre={:?},k={},damping={})",
+            c.n_strongest, c.clusters_searched, c.centre_slack, c.similarity, c.centre, c.k, c.affinity.damping
+        )
+        .to_lowercase()
     }
 
     fn map(&self) -> &RadioMap {

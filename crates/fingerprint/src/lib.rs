@@ -62,7 +62,7 @@ pub use query::{Query, QueryFilter, QueryStats};
 pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
 
 pub mod affinity;
-pub mod mixdis;
-pub mod cluster_search;
 pub mod ap_index;
+pub mod cluster_search;
 pub mod med;
+pub mod mixdis;

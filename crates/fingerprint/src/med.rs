@@ -199,7 +199,7 @@ impl MedMatcher {
 
 impl Matcher for MedMatcher {
     fn name(&self) -> String {
-        "med".into()
+        format!("med(window={},k={})", self.config.window, self.config.k)
     }
 
     fn map(&self) -> &RadioMap {

@@ -76,7 +76,11 @@ fn walk_map_beats_centroid_on_held_out_walks() {
     // Every fifth walk held out.
     let (mut test, mut train) = (Vec::new(), Vec::new());
     for (i, w) in walks.into_iter().enumerate() {
-        if i % 5 == 0 { test.push(w) } else { train.push(w) }
+        if i % 5 == 0 {
+            test.push(w)
+        } else {
+            train.push(w)
+        }
     }
     let (test, train) = (&test[..], &train[..]);
     for max_age in [Some(2_000), Some(5_000), Some(10_000), None] {

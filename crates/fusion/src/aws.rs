@@ -59,7 +59,7 @@ impl AwsFuser {
                 });
             }
         }
-        if !(cfg.w1 + cfg.w2 > 0.0) {
+        if cfg.w1 + cfg.w2 <= 0.0 {
             return Err(FusionError::InvalidConfig {
                 field: "w1",
                 reason: "w1 + w2 must be > 0".into(),

@@ -41,7 +41,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::Normal;
 use serde::{Deserialize, Serialize};
-use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
+use wipdr_core::{Point2, Segment, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
 use crate::kalman::enforce_symmetric_pd;
 use crate::resample::{effective_sample_size, systematic};
@@ -198,6 +198,8 @@ pub struct ParticleFilter {
     particles: Vec<Particle>,
     weights: Vec<f64>,
     scratch: Vec<Particle>,
+    weights_backup: Vec<f64>,
+    nearby_walls: Vec<Segment>,
     t: TimestampMs,
     previous_fix_estimate: Option<(TimestampMs, Point2)>,
     out_of_gate: Vec<Vector2>,
@@ -241,6 +243,8 @@ impl ParticleFilter {
             particles: Vec::new(),
             weights: Vec::new(),
             scratch: Vec::new(),
+            weights_backup: Vec::new(),
+            nearby_walls: Vec::new(),
             t: 0,
             previous_fix_estimate: None,
             out_of_gate: Vec::new(),
@@ -315,9 +319,11 @@ impl ParticleFilter {
         }
     }
 
-    /// Moves every particle by one step; walls test when `use_walls`. Returns the new set and
-    /// weights without committing.
-    fn propagate(&mut self, step: &StepEvent, use_walls: bool) -> (Vec<Particle>, Vec<f64>) {
+    /// Moves every particle by one step into `self.scratch`; with `use_walls`, zeroes the
+    /// weight of every particle whose move crosses a wall. The walls near the whole cloud
+    /// are fetched with one R-tree query; each move is then tested against that short list
+    /// (or against the tree when the list is long).
+    fn propagate(&mut self, step: &StepEvent, use_walls: bool) {
         let c = &self.cfg;
         let (len_n, head_n, pos_n) = (
             normal(c.step_length_sd_m),
@@ -328,28 +334,52 @@ impl ParticleFilter {
             normal(c.heading_offset_walk_deg.to_radians()),
             normal(c.step_scale_walk),
         );
-        let mut moved = Vec::with_capacity(self.particles.len());
-        let mut weights = self.weights.clone();
-        for (p, w) in self.particles.iter().zip(weights.iter_mut()) {
+        self.scratch.clear();
+        let mut lo = Point2::new(f64::INFINITY, f64::INFINITY);
+        let mut hi = Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for p in &self.particles {
             let length = (step.length * p.step_scale + self.rng.sample(len_n)).max(0.0);
             let heading = step.heading + p.heading_offset + self.rng.sample(head_n);
             let to = p.position
                 + angle::step_displacement(length, heading)
                 + Vector2::new(self.rng.sample(pos_n), self.rng.sample(pos_n));
-            if use_walls
-                && let Some(walls) = &self.walls
-                && walls.crosses(p.position, to)
-            {
-                *w = 0.0;
+            for q in [p.position, to] {
+                lo = Point2::new(lo.x.min(q.x), lo.y.min(q.y));
+                hi = Point2::new(hi.x.max(q.x), hi.y.max(q.y));
             }
-            moved.push(Particle {
+            self.scratch.push(Particle {
                 position: to,
                 anchor: p.anchor,
                 heading_offset: angle::wrap_pi(p.heading_offset + self.rng.sample(off_walk)),
                 step_scale: (p.step_scale + self.rng.sample(scale_walk)).clamp(0.5, 1.5),
             });
         }
-        (moved, weights)
+        let Some(walls) = self.walls.as_ref().filter(|_| use_walls) else {
+            return;
+        };
+        self.nearby_walls.clear();
+        walls.walls_near(lo, hi, &mut self.nearby_walls);
+        if self.nearby_walls.is_empty() {
+            return;
+        }
+        let short_list = self.nearby_walls.len() <= 64;
+        for ((from, to), w) in self
+            .particles
+            .iter()
+            .zip(&self.scratch)
+            .zip(self.weights.iter_mut())
+        {
+            let crosses = if short_list {
+                self.nearby_walls
+                    .iter()
+                    .any(|s| s.intersects(from.position, to.position))
+            } else {
+                walls.crosses(from.position, to.position)
+            };
+            if crosses {
+                *w = 0.0;
+            }
+        }
     }
 }
 
@@ -372,18 +402,19 @@ impl Fuser for ParticleFilter {
         self.odometry += angle::step_displacement(step.length, step.heading);
         let use_walls = self.adaptive && self.cfg.use_walls && self.walls.is_some();
         let stuck = self.wall_stuck >= self.cfg.wall_stuck_steps;
-        let (moved, weights) = self.propagate(step, use_walls && !stuck);
-        let old_weights = std::mem::replace(&mut self.weights, weights);
+        self.weights_backup.clear();
+        self.weights_backup.extend_from_slice(&self.weights);
+        self.propagate(step, use_walls && !stuck);
         if !self.normalise() {
             // Walls killed every particle: keep the previous set (004 §4.3.3 recovery).
-            self.weights = old_weights;
+            std::mem::swap(&mut self.weights, &mut self.weights_backup);
             self.wall_stuck += 1;
             self.diagnostics.wall_recoveries += 1;
             tracing::debug!(t = step.t, "walls killed every particle; previous set kept");
             return;
         }
         self.wall_stuck = 0;
-        self.particles = moved;
+        std::mem::swap(&mut self.particles, &mut self.scratch);
         self.maybe_resample();
     }
 
@@ -443,7 +474,7 @@ impl Fuser for ParticleFilter {
             .iter()
             .zip(&self.weights)
             .map(|(p, w)| {
-                if !(*w > 0.0) {
+                if w.is_nan() || *w <= 0.0 {
                     return f64::NEG_INFINITY;
                 }
                 let mut l = w.ln() - (p.position - z).norm_squared() * inv_2r;
@@ -506,7 +537,6 @@ mod tests {
     use super::*;
     use crate::synthetic::{SyntheticConfig, SyntheticWalk, obs_at, step};
     use proptest::prelude::*;
-    use wipdr_core::Segment;
 
     fn small() -> PfConfig {
         PfConfig {

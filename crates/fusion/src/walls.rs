@@ -61,6 +61,16 @@ impl WallIndex {
         self.tree.size() == 0
     }
 
+    /// Appends to `out` the walls whose bounding box meets the box with corners `lo`, `hi`.
+    pub fn walls_near(&self, lo: Point2, hi: Point2, out: &mut Vec<Segment>) {
+        let envelope = AABB::from_corners([lo.x, lo.y], [hi.x, hi.y]);
+        out.extend(
+            self.tree
+                .locate_in_envelope_intersecting(&envelope)
+                .map(|w| w.0),
+        );
+    }
+
     /// Whether the move `from -> to` crosses (or touches) any wall.
     pub fn crosses(&self, from: Point2, to: Point2) -> bool {
         let envelope = AABB::from_corners([from.x, from.y], [to.x, to.y]);

@@ -18,7 +18,7 @@ use crate::geojson::LonLatBox;
 use crate::trace::{ParseReport, ParsedWalk};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 use wipdr_core::{
@@ -30,8 +30,8 @@ use wipdr_core::{
 pub const DEFAULT_CACHE_DIR: &str = "target/wipdr-cache";
 
 /// Bumped whenever the cached types or the reader's behaviour change.
-const FORMAT_VERSION: u32 = 4;
-const MAGIC: &[u8; 8] = b"WIPDRFC4";
+const FORMAT_VERSION: u32 = 5;
+const MAGIC: &[u8; 8] = b"WIPDRFC5";
 
 /// What [`read_floor_dir_cached_with`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -122,14 +122,32 @@ fn config() -> bincode::config::Configuration<bincode::config::LittleEndian, bin
     bincode::config::standard().with_fixed_int_encoding()
 }
 
+/// Reads a `u64`-length-prefixed blob, refusing lengths beyond `max` bytes.
+fn read_blob(r: &mut impl Read, max: u64) -> Option<Vec<u8>> {
+    let mut len = [0u8; 8];
+    r.read_exact(&mut len).ok()?;
+    let len = u64::from_le_bytes(len);
+    if len > max {
+        return None;
+    }
+    let mut blob = vec![0u8; usize::try_from(len).ok()?];
+    r.read_exact(&mut blob).ok()?;
+    Some(blob)
+}
+
+/// File layout: magic, key blob, head blob, index blob (the walk blobs' lengths), then the
+/// walk blobs, which are read and decoded in parallel.
 fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
-    let bytes = std::fs::read(file).ok()?;
-    let rest = bytes.strip_prefix(MAGIC.as_slice())?;
-    let (len_bytes, rest) = rest.split_at_checked(8)?;
-    let key_len = usize::try_from(u64::from_le_bytes(len_bytes.try_into().ok()?)).ok()?;
-    let (key_bytes, body) = rest.split_at_checked(key_len)?;
+    let size = std::fs::metadata(file).ok()?.len();
+    let mut r = std::io::BufReader::new(std::fs::File::open(file).ok()?);
+    let mut magic = [0u8; 8];
+    r.read_exact(&mut magic).ok()?;
+    if &magic != MAGIC {
+        return None;
+    }
+    let key_bytes = read_blob(&mut r, size)?;
     let (stored, _): (CacheKey, usize) = match bincode::serde::decode_from_slice(
-        key_bytes,
+        &key_bytes,
         config(),
     ) {
         Ok(k) => k,
@@ -142,13 +160,51 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
         tracing::info!(file = %file.display(), "cache is stale, re-reading the floor");
         return None;
     }
-    match decode_body(body) {
-        Some(floor) => Some(floor),
-        None => {
-            tracing::warn!(file = %file.display(), "unreadable cache, re-reading");
-            None
+    let floor = (|| {
+        let head = read_blob(&mut r, size)?;
+        let (head, _): (FloorHead, usize) =
+            bincode::serde::decode_from_slice(&head, config()).ok()?;
+        let index = read_blob(&mut r, size)?;
+        let mut start = r.stream_position().ok()?;
+        let mut spans = Vec::with_capacity(index.len() / 8);
+        for len in index.chunks_exact(8) {
+            let len = u64::from_le_bytes(len.try_into().ok()?);
+            let end = start.checked_add(len)?;
+            if end > size {
+                return None;
+            }
+            spans.push((start, len));
+            start = end;
         }
+        if start != size {
+            return None;
+        }
+        let walks = spans
+            .par_iter()
+            .map(|&(at, len)| {
+                let mut f = std::fs::File::open(file).ok()?;
+                f.seek(SeekFrom::Start(at)).ok()?;
+                let mut blob = vec![0u8; usize::try_from(len).ok()?];
+                f.read_exact(&mut blob).ok()?;
+                decode_walk(&blob)
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let (name, dir, width, height, plan, lonlat_box, skipped_features) = head;
+        Some(FloorData {
+            name,
+            dir,
+            width,
+            height,
+            plan,
+            lonlat_box,
+            skipped_features,
+            walks,
+        })
+    })();
+    if floor.is_none() {
+        tracing::warn!(file = %file.display(), "unreadable cache, re-reading");
     }
+    floor
 }
 
 /// The floor without its walks, as encoded in the cache.
@@ -303,31 +359,7 @@ fn decode_walk(mut b: &[u8]) -> Option<ParsedWalk> {
     })
 }
 
-/// Body: the head blob, then one blob per walk; the walks decode in parallel.
-fn decode_body(mut body: &[u8]) -> Option<FloorData> {
-    let head = take_blob(&mut body)?;
-    let (head, _): (FloorHead, usize) = bincode::serde::decode_from_slice(head, config()).ok()?;
-    let mut blobs = Vec::new();
-    while !body.is_empty() {
-        blobs.push(take_blob(&mut body)?);
-    }
-    let walks = blobs
-        .par_iter()
-        .map(|b| decode_walk(b))
-        .collect::<Option<Vec<_>>>()?;
-    let (name, dir, width, height, plan, lonlat_box, skipped_features) = head;
-    Some(FloorData {
-        name,
-        dir,
-        width,
-        height,
-        plan,
-        lonlat_box,
-        skipped_features,
-        walks,
-    })
-}
-
+/// Everything after the key: head blob, index blob, walk blobs (see [`try_load`]).
 fn encode_body(floor: &FloorData) -> Result<Vec<u8>, String> {
     let head = (
         &floor.name,
@@ -344,11 +376,17 @@ fn encode_body(floor: &FloorData) -> Result<Vec<u8>, String> {
         .par_iter()
         .map(encode_walk)
         .collect::<Result<Vec<_>, _>>()?;
-    let mut out =
-        Vec::with_capacity(head.len() + walks.iter().map(|w| w.len() + 8).sum::<usize>() + 8);
+    let index: Vec<u8> = walks
+        .iter()
+        .flat_map(|w| (w.len() as u64).to_le_bytes())
+        .collect();
+    let mut out = Vec::with_capacity(
+        head.len() + index.len() + walks.iter().map(Vec::len).sum::<usize>() + 16,
+    );
     push_blob(&mut out, &head);
+    push_blob(&mut out, &index);
     for w in &walks {
-        push_blob(&mut out, w);
+        out.extend_from_slice(w);
     }
     Ok(out)
 }
@@ -493,12 +531,19 @@ mod tests {
         assert_eq!(o, CacheOutcome::Miss);
         // A corrupted cache file is ignored and rewritten.
         let file = cache_file(&dir, &cache);
-        std::fs::write(&file, b"WIPDRFC4garbage").unwrap();
+        std::fs::write(&file, b"WIPDRFC5garbage").unwrap();
         let (e, o) = read_floor_dir_cached_with(&dir, &cache, &other, &|| {}).unwrap();
         assert_eq!(o, CacheOutcome::Miss);
         assert_eq!(e.walks, d.walks);
         let (_, o) = read_floor_dir_cached_with(&dir, &cache, &other, &|| {}).unwrap();
         assert_eq!(o, CacheOutcome::Hit);
+        // A truncated body too.
+        let bytes = std::fs::read(&file).unwrap();
+        std::fs::write(&file, &bytes[..bytes.len() - 3]).unwrap();
+        let (f, o) = read_floor_dir_cached_with(&dir, &cache, &other, &|| {}).unwrap();
+        assert_eq!(o, CacheOutcome::Miss);
+        assert_eq!(f.walks, d.walks);
+        assert_eq!(std::fs::read(&file).unwrap(), bytes);
     }
 
     #[test]

@@ -73,7 +73,10 @@ pub fn gravity_orientation(acc: [f64; 3]) -> Option<UnitQuaternion<f64>> {
     }
     UnitQuaternion::rotation_between(&a, &Vector3::z()).or_else(|| {
         // `a` points straight down: turn half a circle about x.
-        Some(UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI))
+        Some(UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            std::f64::consts::PI,
+        ))
     })
 }
 
@@ -92,7 +95,10 @@ pub struct GyroAttitudeConfig {
 
 impl Default for GyroAttitudeConfig {
     fn default() -> Self {
-        Self { tilt_gain: 0.5, max_dt_s: 0.5 }
+        Self {
+            tilt_gain: 0.5,
+            max_dt_s: 0.5,
+        }
     }
 }
 
@@ -122,7 +128,11 @@ pub struct GyroAttitude {
 impl GyroAttitude {
     /// An uninitialised attitude.
     pub fn new(cfg: GyroAttitudeConfig) -> Self {
-        Self { cfg, q: None, last_t: None }
+        Self {
+            cfg,
+            q: None,
+            last_t: None,
+        }
     }
 
     /// Sets the orientation (start, or after a gap).
@@ -197,7 +207,12 @@ pub struct HeadingKfConfig {
 
 impl Default for HeadingKfConfig {
     fn default() -> Self {
-        Self { angle_noise: 1e-4, rate_noise: 1e-2, compass_std: 0.35, gate_sigmas: 3.0 }
+        Self {
+            angle_noise: 1e-4,
+            rate_noise: 1e-2,
+            compass_std: 0.35,
+            gate_sigmas: 3.0,
+        }
     }
 }
 
@@ -224,7 +239,12 @@ pub struct HeadingKf {
 impl HeadingKf {
     /// An uninitialised filter.
     pub fn new(cfg: HeadingKfConfig) -> Self {
-        Self { cfg, state: None, p: Matrix2::identity(), rejected: 0 }
+        Self {
+            cfg,
+            state: None,
+            p: Matrix2::identity(),
+            rejected: 0,
+        }
     }
 
     /// Starts the filter at `angle` (rad) and `rate` (rad/s), with a loose covariance.
@@ -261,14 +281,21 @@ impl HeadingKf {
         let b = Vector2::new(dt * dt / 2.0, dt);
         *s = a * *s + b * u;
         s[0] = wrap_pi(s[0]);
-        let q = Matrix2::new(self.cfg.angle_noise * dt, 0.0, 0.0, self.cfg.rate_noise * dt);
+        let q = Matrix2::new(
+            self.cfg.angle_noise * dt,
+            0.0,
+            0.0,
+            self.cfg.rate_noise * dt,
+        );
         self.p = a * self.p * a.transpose() + q;
         self.p = (self.p + self.p.transpose()) * 0.5;
     }
 
     /// Eq. 12: update with a compass azimuth (rad). Returns whether it was applied.
     pub fn update(&mut self, azimuth: f64) -> bool {
-        let Some(s) = self.state.as_mut() else { return false };
+        let Some(s) = self.state.as_mut() else {
+            return false;
+        };
         if !azimuth.is_finite() {
             return false;
         }
@@ -278,7 +305,8 @@ impl HeadingKf {
         if sv <= 0.0 {
             return false;
         }
-        if self.cfg.gate_sigmas > 0.0 && innovation * innovation > self.cfg.gate_sigmas.powi(2) * sv {
+        if self.cfg.gate_sigmas > 0.0 && innovation * innovation > self.cfg.gate_sigmas.powi(2) * sv
+        {
             self.rejected += 1;
             return false;
         }
@@ -341,7 +369,10 @@ mod tests {
 
     #[test]
     fn tilt_correction_pulls_towards_gravity() {
-        let mut att = GyroAttitude::new(GyroAttitudeConfig { tilt_gain: 2.0, max_dt_s: 0.5 });
+        let mut att = GyroAttitude::new(GyroAttitudeConfig {
+            tilt_gain: 2.0,
+            max_dt_s: 0.5,
+        });
         // Start 10 degrees off in roll while the phone is really flat.
         att.initialise(UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.17));
         for i in 0..500 {

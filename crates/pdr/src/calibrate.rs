@@ -94,7 +94,11 @@ pub fn legs(steps: &[StepDetail], waypoints: &[Waypoint]) -> Vec<Leg> {
         .map(|w| {
             let a = steps.partition_point(|s| s.event.t <= w[0].t);
             let b = steps.partition_point(|s| s.event.t <= w[1].t);
-            Leg { start: w[0], end: w[1], steps: a..b }
+            Leg {
+                start: w[0],
+                end: w[1],
+                steps: a..b,
+            }
         })
         .collect()
 }
@@ -162,7 +166,11 @@ pub fn fit_step_length(
     let mut out = model;
     match least_squares(&rows, &y, &prior, cfg.ridge_per_leg * n_legs as f64) {
         Some(theta) => out.model_mut().set_coefficients(&theta),
-        None => tracing::warn!(legs = n_legs, model = model.name(), "step-length fit failed: model unchanged"),
+        None => tracing::warn!(
+            legs = n_legs,
+            model = model.name(),
+            "step-length fit failed: model unchanged"
+        ),
     }
     out
 }
@@ -208,7 +216,11 @@ fn heading_from(s: &StepDetail, source: HeadingSource) -> f64 {
 }
 
 /// The summed displacement of `steps` under `model` and `source`.
-pub fn leg_displacement(steps: &[StepDetail], model: &StepLengthConfig, source: HeadingSource) -> Vector2 {
+pub fn leg_displacement(
+    steps: &[StepDetail],
+    model: &StepLengthConfig,
+    source: HeadingSource,
+) -> Vector2 {
     steps
         .iter()
         .map(|s| step_displacement(length_of(s, model), heading_from(s, source)))
@@ -269,7 +281,9 @@ pub fn dead_reckon_at_waypoints(
     waypoints: &[Waypoint],
     score_after: Option<TimestampMs>,
 ) -> Vec<ScoredWaypoint> {
-    let Some(first) = waypoints.first() else { return Vec::new() };
+    let Some(first) = waypoints.first() else {
+        return Vec::new();
+    };
     let mut pos = first.position;
     let mut i = lengths_headings.partition_point(|s| s.0 <= first.t);
     let mut out = Vec::new();
@@ -280,7 +294,12 @@ pub fn dead_reckon_at_waypoints(
             i += 1;
         }
         if score_after.is_none_or(|a| w.t > a) {
-            out.push(ScoredWaypoint { t: w.t, truth: w.position, estimate: pos, error: (pos - w.position).norm() });
+            out.push(ScoredWaypoint {
+                t: w.t,
+                truth: w.position,
+                estimate: pos,
+                error: (pos - w.position).norm(),
+            });
         }
     }
     out
@@ -314,7 +333,14 @@ mod tests {
 
     fn step(t: i64, amp: f64, heading: f64) -> StepDetail {
         StepDetail {
-            event: StepEvent { t, length: 0.0, heading, heading_change: 0.0, period_s: 0.5, motion: MotionState::default() },
+            event: StepEvent {
+                t,
+                length: 0.0,
+                heading,
+                heading_change: 0.0,
+                period_s: 0.5,
+                motion: MotionState::default(),
+            },
             features: StepFeatures {
                 period_s: 0.5,
                 mean_period_s: 0.5,
@@ -326,13 +352,19 @@ mod tests {
                 first: false,
                 vertical_excursion: None,
             },
-            headings: SourceHeadings { rotation_vector: Some(heading), ..Default::default() },
+            headings: SourceHeadings {
+                rotation_vector: Some(heading),
+                ..Default::default()
+            },
             sgyr: 0.0,
         }
     }
 
     fn wp(t: i64, x: f64, y: f64) -> Waypoint {
-        Waypoint { t, position: Point2::new(x, y) }
+        Waypoint {
+            t,
+            position: Point2::new(x, y),
+        }
     }
 
     #[test]
@@ -340,23 +372,49 @@ mod tests {
         // True K = 0.5 with a_max - a_min = 4 (length 0.5 * sqrt 2); true heading east but the
         // phone reads 0.1 rad less.
         let true_len = 0.5 * 4f64.powf(0.25);
-        let steps: Vec<StepDetail> = (1..=40).map(|i| step(i * 500, 2.0, std::f64::consts::FRAC_PI_2 - 0.1)).collect();
-        let waypoints = vec![wp(0, 0.0, 0.0), wp(10_000, 20.0 * true_len, 0.0), wp(20_000, 40.0 * true_len, 0.0)];
-        let walks = [WalkSteps { steps: &steps, waypoints: &waypoints }];
-        let cfg = CalibrationConfig { ridge_per_leg: 0.0, objective: FitObjective::Length, ..Default::default() };
-        let fitted = fit_step_length(StepLengthConfig::Weinberg(Weinberg::default()), &walks, &cfg);
-        let StepLengthConfig::Weinberg(w) = fitted else { panic!("model changed") };
+        let steps: Vec<StepDetail> = (1..=40)
+            .map(|i| step(i * 500, 2.0, std::f64::consts::FRAC_PI_2 - 0.1))
+            .collect();
+        let waypoints = vec![
+            wp(0, 0.0, 0.0),
+            wp(10_000, 20.0 * true_len, 0.0),
+            wp(20_000, 40.0 * true_len, 0.0),
+        ];
+        let walks = [WalkSteps {
+            steps: &steps,
+            waypoints: &waypoints,
+        }];
+        let cfg = CalibrationConfig {
+            ridge_per_leg: 0.0,
+            objective: FitObjective::Length,
+            ..Default::default()
+        };
+        let fitted = fit_step_length(
+            StepLengthConfig::Weinberg(Weinberg::default()),
+            &walks,
+            &cfg,
+        );
+        let StepLengthConfig::Weinberg(w) = fitted else {
+            panic!("model changed")
+        };
         assert!((w.k - 0.5).abs() < 1e-9, "{}", w.k);
         let off = fit_heading_offset(&fitted, HeadingSource::RotationVector, &walks, &cfg).unwrap();
         assert!((off - 0.1).abs() < 1e-9, "{off}");
         let errs = leg_errors(&walks[0], &fitted, HeadingSource::RotationVector, &cfg);
         assert_eq!(errs.len(), 2);
-        assert!(errs.iter().all(|e| e.length_rel.abs() < 1e-9 && (e.heading + 0.1).abs() < 1e-9));
+        assert!(
+            errs.iter()
+                .all(|e| e.length_rel.abs() < 1e-9 && (e.heading + 0.1).abs() < 1e-9)
+        );
     }
 
     #[test]
     fn dead_reckoning_scores_after_first_scan() {
-        let tr = vec![(100, 1.0, 0.0), (200, 1.0, 0.0), (300, 1.0, std::f64::consts::FRAC_PI_2)];
+        let tr = vec![
+            (100, 1.0, 0.0),
+            (200, 1.0, 0.0),
+            (300, 1.0, std::f64::consts::FRAC_PI_2),
+        ];
         let wps = vec![wp(50, 0.0, 0.0), wp(150, 0.0, 1.0), wp(400, 1.0, 2.0)];
         let s = dead_reckon_at_waypoints(&tr, &wps, Some(160));
         assert_eq!(s.len(), 1);
@@ -369,6 +427,9 @@ mod tests {
     fn empty_fit_keeps_model() {
         let m = StepLengthConfig::default();
         assert_eq!(fit_step_length(m, &[], &CalibrationConfig::default()), m);
-        assert!(fit_heading_offset(&m, HeadingSource::Gyro, &[], &CalibrationConfig::default()).is_none());
+        assert!(
+            fit_heading_offset(&m, HeadingSource::Gyro, &[], &CalibrationConfig::default())
+                .is_none()
+        );
     }
 }

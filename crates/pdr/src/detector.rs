@@ -171,7 +171,11 @@ impl StepDetector {
             if (t - last) as f64 / 1000.0 > self.cfg.max_gap_s {
                 self.reset();
                 self.resets += 1;
-                tracing::debug!(t, gap_ms = t - last, "accelerometer gap: step detector reset");
+                tracing::debug!(
+                    t,
+                    gap_ms = t - last,
+                    "accelerometer gap: step detector reset"
+                );
             }
         }
         self.last_t = Some(t);
@@ -194,7 +198,10 @@ impl StepDetector {
         let n = self.window.len() as f64;
         let mean = self.sum / n;
         let variance = (self.sum_sq / n - mean * mean).max(0.0);
-        let threshold = self.cfg.min_threshold.max(self.cfg.std_factor * variance.sqrt());
+        let threshold = self
+            .cfg
+            .min_threshold
+            .max(self.cfg.std_factor * variance.sqrt());
 
         let detrended = filtered - mean;
         let extremum = if detrended > self.prev_detrended.max(threshold) {

@@ -19,7 +19,11 @@ pub struct LowPassConfig {
 
 impl Default for LowPassConfig {
     fn default() -> Self {
-        Self { order: 4, cutoff_hz: 2.0, design_rate_hz: 50.0 }
+        Self {
+            order: 4,
+            cutoff_hz: 2.0,
+            design_rate_hz: 50.0,
+        }
     }
 }
 
@@ -73,7 +77,9 @@ impl Butterworth {
         let fc = cfg.cutoff_hz;
         if !(fs > 0.0 && fc > 0.0 && fc < fs / 2.0 && cfg.order > 0) {
             tracing::warn!(?cfg, "invalid low-pass settings: filter disabled");
-            return Self { sections: Vec::new() };
+            return Self {
+                sections: Vec::new(),
+            };
         }
         let n = cfg.order.div_ceil(2) * 2;
         let k = (PI * fc / fs).tan();
@@ -152,7 +158,10 @@ mod tests {
 
     #[test]
     fn invalid_config_is_pass_through() {
-        let mut f = Butterworth::new(&LowPassConfig { cutoff_hz: 30.0, ..Default::default() });
+        let mut f = Butterworth::new(&LowPassConfig {
+            cutoff_hz: 30.0,
+            ..Default::default()
+        });
         assert_eq!(f.step(3.5), 3.5);
     }
 }

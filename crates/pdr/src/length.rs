@@ -42,7 +42,11 @@ pub trait StepLengthModel {
     /// Step length (m), before clamping to the configured range.
     fn length(&self, f: &StepFeatures) -> f64 {
         let phi = self.regressors(f);
-        self.coefficients().iter().zip(&phi).map(|(c, x)| c * x).sum()
+        self.coefficients()
+            .iter()
+            .zip(&phi)
+            .map(|(c, x)| c * x)
+            .sum()
     }
     /// The regressors `φ(features)`, so that `length = coefficients · φ`.
     fn regressors(&self, f: &StepFeatures) -> Vec<f64>;
@@ -67,7 +71,11 @@ pub struct Linear {
 impl Default for Linear {
     /// Not printed in the paper (trained per user); defaults give 0.7 m at 0.5 s and 2 m/s².
     fn default() -> Self {
-        Self { a: 0.9, b: -0.6, c: 0.05 }
+        Self {
+            a: 0.9,
+            b: -0.6,
+            c: 0.05,
+        }
     }
 }
 
@@ -97,7 +105,10 @@ pub struct Weinberg {
 
 impl Default for Weinberg {
     fn default() -> Self {
-        Self { k: 0.45, exponent: 0.25 }
+        Self {
+            k: 0.45,
+            exponent: 0.25,
+        }
     }
 }
 
@@ -129,7 +140,11 @@ pub struct Pendulum {
 
 impl Default for Pendulum {
     fn default() -> Self {
-        Self { leg_length: 0.9, k: 1.0, fallback_length: 0.7 }
+        Self {
+            leg_length: 0.9,
+            k: 1.0,
+            fallback_length: 0.7,
+        }
     }
 }
 
@@ -300,7 +315,10 @@ pub fn least_squares(rows: &[Vec<f64>], y: &[f64], prior: &[f64], ridge: f64) ->
     }
     let chol = ata.cholesky()?;
     let theta = chol.solve(&aty);
-    theta.iter().all(|v| v.is_finite()).then(|| theta.iter().copied().collect())
+    theta
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| theta.iter().copied().collect())
 }
 
 #[cfg(test)]
@@ -323,7 +341,10 @@ mod tests {
 
     #[test]
     fn weinberg_exponent() {
-        let m = Weinberg { k: 0.5, exponent: 0.25 };
+        let m = Weinberg {
+            k: 0.5,
+            exponent: 0.25,
+        };
         assert!((m.length(&feat(0.5, 12.0, 8.0)) - 0.5 * 4f64.powf(0.25)).abs() < 1e-12);
         // a_max < a_min cannot give NaN.
         assert_eq!(m.length(&feat(0.5, 8.0, 12.0)), 0.0);
@@ -357,7 +378,11 @@ mod tests {
 
     #[test]
     fn least_squares_recovers_linear_model() {
-        let truth = Linear { a: 0.3, b: 0.5, c: 0.08 };
+        let truth = Linear {
+            a: 0.3,
+            b: 0.5,
+            c: 0.08,
+        };
         let mut rows = Vec::new();
         let mut y = Vec::new();
         for i in 0..50 {
@@ -366,7 +391,9 @@ mod tests {
             y.push(truth.length(&f));
         }
         let th = least_squares(&rows, &y, &[0.0; 3], 0.0).unwrap();
-        assert!((th[0] - 0.3).abs() < 1e-6 && (th[1] - 0.5).abs() < 1e-6 && (th[2] - 0.08).abs() < 1e-6);
+        assert!(
+            (th[0] - 0.3).abs() < 1e-6 && (th[1] - 0.5).abs() < 1e-6 && (th[2] - 0.08).abs() < 1e-6
+        );
         assert!(least_squares(&[], &[], &[0.0], 0.0).is_none());
         assert!(least_squares(&[vec![0.0]], &[1.0], &[0.0], 0.0).is_none());
     }

@@ -129,7 +129,10 @@ impl StationaryDetector {
                 break;
             }
         }
-        let full = self.window.front().is_some_and(|&(t0, _)| t - t0 >= w * 3 / 4);
+        let full = self
+            .window
+            .front()
+            .is_some_and(|&(t0, _)| t - t0 >= w * 3 / 4);
         if full {
             let n = self.window.len() as f64;
             let mean = self.sum / n;
@@ -191,7 +194,10 @@ mod tests {
         assert!(d.is_stationary());
         for i in 100..200 {
             let t = i as f64 * 0.02;
-            d.push(i * 20, 9.81 + 2.0 * (2.0 * std::f64::consts::PI * 2.0 * t).sin());
+            d.push(
+                i * 20,
+                9.81 + 2.0 * (2.0 * std::f64::consts::PI * 2.0 * t).sin(),
+            );
         }
         assert!(!d.is_stationary());
         assert!(d.take_stop_since_last_step());

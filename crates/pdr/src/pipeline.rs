@@ -11,9 +11,7 @@ use crate::vertical::{VerticalConfig, VerticalZupt};
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use wipdr_core::angle::{diff, wrap_pi};
-use wipdr_core::{
-    MotionState, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Walk,
-};
+use wipdr_core::{MotionState, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Walk};
 
 /// Where a step's heading comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -336,7 +334,12 @@ impl Pdr {
     }
 
     /// Checks a sample's time against the stream's last; counts and rejects bad ones.
-    fn accept(diag: &mut PdrDiagnostics, last: &mut Option<TimestampMs>, t: TimestampMs, ok: bool) -> bool {
+    fn accept(
+        diag: &mut PdrDiagnostics,
+        last: &mut Option<TimestampMs>,
+        t: TimestampMs,
+        ok: bool,
+    ) -> bool {
         if !ok {
             diag.non_finite += 1;
             tracing::debug!(t, "non-finite IMU sample skipped");
@@ -379,7 +382,9 @@ impl Pdr {
         }
         self.mag = Some(s.v);
         let Some(acc) = self.acc else { return };
-        let Some(q) = compass_orientation(acc, s.v) else { return };
+        let Some(q) = compass_orientation(acc, s.v) else {
+            return;
+        };
         let h = heading_of(&q);
         self.tracks[3].update(h);
         if self.kf.is_initialised() {
@@ -402,7 +407,11 @@ impl Pdr {
         if !self.gyro_att.is_initialised() {
             let init = self
                 .rv
-                .or_else(|| self.acc.zip(self.mag).and_then(|(a, m)| compass_orientation(a, m)))
+                .or_else(|| {
+                    self.acc
+                        .zip(self.mag)
+                        .and_then(|(a, m)| compass_orientation(a, m))
+                })
                 .or_else(|| self.acc.and_then(gravity_orientation));
             if let Some(q) = init {
                 self.gyro_att.initialise(q);
@@ -412,7 +421,9 @@ impl Pdr {
         if let Some(q) = self.gyro_att.orientation() {
             self.tracks[1].update(heading_of(q));
         }
-        let Some(reference) = self.reference_orientation() else { return };
+        let Some(reference) = self.reference_orientation() else {
+            return;
+        };
         let rate = heading_rate(&reference, s.v);
         let dt = last.map(|l| (s.t - l) as f64 / 1000.0);
         match dt {
@@ -520,7 +531,8 @@ impl Pdr {
         let sgyr = if self.last_gyro_t.is_some() {
             std::mem::take(&mut self.sgyr)
         } else {
-            self.emitted_heading_at_last_step.map_or(0.0, |p| diff(heading, p))
+            self.emitted_heading_at_last_step
+                .map_or(0.0, |p| diff(heading, p))
         };
         let turn = classify_turn(sgyr, self.sgyr_prev, &cfg.motion);
         self.sgyr_prev = sgyr;
@@ -540,7 +552,12 @@ impl Pdr {
                 stationary: stopped,
             },
         };
-        StepDetail { event, features, headings, sgyr }
+        StepDetail {
+            event,
+            features,
+            headings,
+            sgyr,
+        }
     }
 
     /// Runs the pipeline over a whole walk (streams merged in time order; at equal times the
@@ -549,8 +566,12 @@ impl Pdr {
     pub fn run_detailed(cfg: PdrConfig, walk: &Walk) -> (Vec<StepDetail>, PdrDiagnostics) {
         let mut pdr = Pdr::new(cfg);
         let imu = &walk.imu;
-        let (acc, gyr, mag, rv) =
-            (&imu.accelerometer, &imu.gyroscope, &imu.magnetometer, &imu.rotation_vector);
+        let (acc, gyr, mag, rv) = (
+            &imu.accelerometer,
+            &imu.gyroscope,
+            &imu.magnetometer,
+            &imu.rotation_vector,
+        );
         let (mut ia, mut ig, mut im, mut ir) = (0usize, 0usize, 0usize, 0usize);
         let mut out = Vec::with_capacity(acc.len() / 20 + 1);
         loop {
@@ -589,6 +610,10 @@ impl Pdr {
     /// assert!(Pdr::run(PdrConfig::default(), &walk).is_empty());
     /// ```
     pub fn run(cfg: PdrConfig, walk: &Walk) -> Vec<StepEvent> {
-        Self::run_detailed(cfg, walk).0.into_iter().map(|d| d.event).collect()
+        Self::run_detailed(cfg, walk)
+            .0
+            .into_iter()
+            .map(|d| d.event)
+            .collect()
     }
 }

@@ -31,7 +31,12 @@ pub struct VerticalConfig {
 
 impl Default for VerticalConfig {
     fn default() -> Self {
-        Self { accel_std: 0.5, zupt_std: 0.05, gravity: 9.81, max_step_s: 2.0 }
+        Self {
+            accel_std: 0.5,
+            zupt_std: 0.05,
+            gravity: 9.81,
+            max_step_s: 2.0,
+        }
     }
 }
 
@@ -102,7 +107,9 @@ impl VerticalZupt {
                     self.vz += am * dt;
                     let q = self.cfg.accel_std * self.cfg.accel_std;
                     let p = self.p;
-                    let p00 = p[0][0] + dt * (p[1][0] + p[0][1]) + dt * dt * p[1][1]
+                    let p00 = p[0][0]
+                        + dt * (p[1][0] + p[0][1])
+                        + dt * dt * p[1][1]
                         + q * dt.powi(4) / 4.0;
                     let p01 = p[0][1] + dt * p[1][1] + q * dt.powi(3) / 2.0;
                     let p11 = p[1][1] + q * dt * dt;

@@ -8,9 +8,11 @@ use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail};
 use wipdr_sim::{SimConfig, WalkTruth, generate};
 
 fn simulate(seed: u64, walks: usize) -> Vec<(wipdr_core::Walk, WalkTruth)> {
-    let mut cfg = SimConfig::default();
-    cfg.walks = walks;
-    cfg.duration_s = 120.0;
+    let mut cfg = SimConfig {
+        walks,
+        duration_s: 120.0,
+        ..Default::default()
+    };
     cfg.survey.test_points = 5;
     let sim = generate(&cfg, seed).expect("simulation");
     sim.walks.into_iter().map(|w| (w.walk, w.truth)).collect()
@@ -23,7 +25,11 @@ fn turn_episodes(steps: &[StepDetail]) -> Vec<(i64, i64)> {
     let mut i = 0;
     while i < steps.len() {
         if steps[i].event.motion.turn == TurnState::Turning {
-            let start = if i > 0 { steps[i - 1].event.t } else { steps[i].event.t - 600 };
+            let start = if i > 0 {
+                steps[i - 1].event.t
+            } else {
+                steps[i].event.t - 600
+            };
             let mut j = i;
             while j + 1 < steps.len() && steps[j + 1].event.motion.turn == TurnState::Turning {
                 j += 1;
@@ -48,15 +54,26 @@ fn synthetic_acceptance() {
     let test = simulate(8, 10);
 
     // Calibrate the step length on the training walks' waypoints.
-    let train_runs: Vec<(Vec<StepDetail>, &wipdr_core::Walk)> =
-        train.iter().map(|(w, _)| (Pdr::run_detailed(cfg, w).0, w)).collect();
+    let train_runs: Vec<(Vec<StepDetail>, &wipdr_core::Walk)> = train
+        .iter()
+        .map(|(w, _)| (Pdr::run_detailed(cfg, w).0, w))
+        .collect();
     let walks: Vec<WalkSteps<'_>> = train_runs
         .iter()
-        .map(|(s, w)| WalkSteps { steps: s, waypoints: &w.waypoints })
+        .map(|(s, w)| WalkSteps {
+            steps: s,
+            waypoints: &w.waypoints,
+        })
         .collect();
-    let cal = CalibrationConfig { heading_source: HeadingSource::RotationVector, ..Default::default() };
+    let cal = CalibrationConfig {
+        heading_source: HeadingSource::RotationVector,
+        ..Default::default()
+    };
     let model = fit_step_length(cfg.step_length, &walks, &cal);
-    let cfg = PdrConfig { step_length: model, ..cfg };
+    let cfg = PdrConfig {
+        step_length: model,
+        ..cfg
+    };
 
     let (mut n_true, mut n_det) = (0usize, 0usize);
     let (mut len_true, mut len_est) = (0.0, 0.0);
@@ -87,15 +104,25 @@ fn synthetic_acceptance() {
         let turns: Vec<(i64, i64)> = truth.turns.iter().map(|t| (t.t_start, t.t_end)).collect();
         n_eps += eps.len();
         n_turns += turns.len();
-        tp_det += eps.iter().filter(|e| turns.iter().any(|t| overlaps(**e, *t, 500))).count();
-        tp_truth += turns.iter().filter(|t| eps.iter().any(|e| overlaps(*e, **t, 500))).count();
+        tp_det += eps
+            .iter()
+            .filter(|e| turns.iter().any(|t| overlaps(**e, *t, 500)))
+            .count();
+        tp_truth += turns
+            .iter()
+            .filter(|t| eps.iter().any(|e| overlaps(*e, **t, 500)))
+            .count();
     }
     let count_err = (n_det as f64 - n_true as f64).abs() / n_true as f64;
     let mean_len_true = len_true / n_true as f64;
     let mean_len_est = len_est / n_det as f64;
     let len_err = (mean_len_est - mean_len_true).abs() / mean_len_true;
     let per_step = per_step_rel.iter().sum::<f64>() / per_step_rel.len().max(1) as f64;
-    println!("per matched step: mean |relative length error| {:.2} % over {} steps", 100.0 * per_step, per_step_rel.len());
+    println!(
+        "per matched step: mean |relative length error| {:.2} % over {} steps",
+        100.0 * per_step,
+        per_step_rel.len()
+    );
     let precision = tp_det as f64 / n_eps.max(1) as f64;
     let recall = tp_truth as f64 / n_turns.max(1) as f64;
     println!(
@@ -128,8 +155,14 @@ fn turn_threshold_sweep() {
             let turns: Vec<(i64, i64)> = truth.turns.iter().map(|t| (t.t_start, t.t_end)).collect();
             n_eps += eps.len();
             n_turns += turns.len();
-            tp_det += eps.iter().filter(|e| turns.iter().any(|t| overlaps(**e, *t, 500))).count();
-            tp_truth += turns.iter().filter(|t| eps.iter().any(|e| overlaps(*e, **t, 500))).count();
+            tp_det += eps
+                .iter()
+                .filter(|e| turns.iter().any(|t| overlaps(**e, *t, 500)))
+                .count();
+            tp_truth += turns
+                .iter()
+                .filter(|t| eps.iter().any(|e| overlaps(*e, **t, 500)))
+                .count();
         }
         println!(
             "T = {t:.2} rad: precision {:.3} ({tp_det}/{n_eps}), recall {:.3} ({tp_truth}/{n_turns})",

@@ -146,9 +146,14 @@ fn main() {
         percentile(&mut turn_angles, 1.0)
     );
     let n = normal.len();
+    let age_label = if max_age_ms == i64::MAX {
+        "all entries".to_string()
+    } else {
+        format!("entries at most {max_age_ms} ms old")
+    };
     let mean = normal.iter().sum::<f64>() / n as f64;
     println!(
-        "Wi-Fi WKNN (k = 5, all entries): {n} scans, mean {mean:.2} m, p50 {:.2}, p95 {:.2}",
+        "Wi-Fi WKNN (k = 5, {age_label}): {n} scans, mean {mean:.2} m, p50 {:.2}, p95 {:.2}",
         percentile(&mut normal, 0.5),
         percentile(&mut normal, 0.95)
     );

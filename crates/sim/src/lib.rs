@@ -32,9 +32,13 @@
 //!
 //! Heading convention: clockwise from `+y` (`../shared/docs/algorithms.md`). Every parameter is
 //! a field of [`SimConfig`] (serde, `Default`). Random draws come from ChaCha8 streams of one
-//! seed: the floor's radio environment, the survey and each walk have their own stream, so walk
-//! `i` is the same whatever the number of walks. [`write`] writes a floor folder in the ILC
-//! layout that the real readers read, byte-identical for the same seed and configuration.
+//! seed: the access points, the magnetic disturbances, the survey and each walk's motion, IMU,
+//! Wi-Fi and waypoints have their own stream, so walk `i` is the same whatever the number of
+//! walks, and changing one model (say the IMU noise) leaves the other streams' output alone.
+//! [`write`] writes a floor folder in the ILC layout that the real readers read, byte-identical
+//! for the same seed and configuration (`wipdr simulate`; the committed set is
+//! `fixtures/sim/F1`, see `fixtures/README.md`). Tests of other crates can skip the files:
+//! [`generate`] returns everything in memory, and [`SimWorld::walk`] makes one walk at a time.
 //!
 //! ```
 //! use wipdr_sim::{SimConfig, generate};
@@ -180,6 +184,7 @@ impl SimWorld {
         let floor = SimFloorPlan::build(&cfg.floor)?;
         let mut rng = rng::stream(seed, rng::STREAM_WORLD);
         let radio = RadioModel::build(&cfg.radio, &floor, &mut rng);
+        let mut rng = rng::stream(seed, rng::STREAM_MAGNETIC);
         let disturbances = imu::mag_disturbances(&cfg.imu, &floor, &mut rng);
         Ok(Self {
             config: cfg.clone(),
@@ -210,7 +215,7 @@ impl SimWorld {
     /// Generates walk `index` (its own random stream: independent of the other walks).
     pub fn walk(&self, index: usize) -> SimWalk {
         let cfg = &self.config;
-        let mut rng = rng::stream(self.seed, rng::STREAM_WALK0 + index as u64);
+        let mut rng = rng::walk_stream(self.seed, index, rng::WALK_MOTION);
         let duration_s =
             cfg.duration_s + rng.uniform(-cfg.duration_jitter_s, cfg.duration_jitter_s);
         let w = &cfg.walker;
@@ -242,7 +247,7 @@ impl SimWorld {
             disturbances: &self.disturbances,
             start_ms,
         };
-        let imu = scene.synthesise(&mut rng);
+        let imu = scene.synthesise(&mut rng::walk_stream(self.seed, index, rng::WALK_IMU));
 
         let position = |t: f64| path.at(timeline.at(t).s).0;
         let scanner = Scanner {
@@ -253,7 +258,10 @@ impl SimWorld {
             duration_s,
             gross_error_rate: cfg.gross_error_rate,
         };
-        let (wifi, injected) = scanner.run(&position, &mut rng);
+        let (wifi, injected) = scanner.run(
+            &position,
+            &mut rng::walk_stream(self.seed, index, rng::WALK_WIFI),
+        );
 
         // Truth: steps, turns, stops, trajectory.
         let steps: Vec<StepTruth> = timeline
@@ -329,6 +337,7 @@ impl SimWorld {
             })
             .collect();
 
+        let mut rng = rng::walk_stream(self.seed, index, rng::WALK_WAYPOINTS);
         // Waypoints: start, about every `waypoint_spacing_m`, the middle of every recorded
         // turn, and the end.
         let mut marks: Vec<f64> = Vec::new();

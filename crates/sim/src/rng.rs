@@ -5,12 +5,31 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 
-/// The stream of the floor's radio environment (access points, disturbances).
+/// The stream of the floor's radio environment (access points).
 pub(crate) const STREAM_WORLD: u64 = 0;
 /// The stream of the survey radio map.
 pub(crate) const STREAM_SURVEY: u64 = 1;
-/// Walk `i` uses stream `STREAM_WALK0 + i`.
+/// The stream of the magnetic disturbances.
+pub(crate) const STREAM_MAGNETIC: u64 = 2;
+/// Walk `i` uses streams `STREAM_WALK0 + WALK_STREAMS * i + c`, one per component `c`
+/// (route and gait, IMU, Wi-Fi, waypoints), so that changing one model (say the IMU noise)
+/// leaves the others' draws, and thus their output, unchanged.
 pub(crate) const STREAM_WALK0: u64 = 1_000;
+/// Number of streams reserved per walk.
+pub(crate) const WALK_STREAMS: u64 = 8;
+/// Component: route, timeline, phone pose.
+pub(crate) const WALK_MOTION: u64 = 0;
+/// Component: IMU synthesis.
+pub(crate) const WALK_IMU: u64 = 1;
+/// Component: Wi-Fi scans.
+pub(crate) const WALK_WIFI: u64 = 2;
+/// Component: waypoints.
+pub(crate) const WALK_WAYPOINTS: u64 = 3;
+
+/// The stream of component `component` of walk `index`.
+pub(crate) fn walk_stream(seed: u64, index: usize, component: u64) -> ChaCha8Rng {
+    stream(seed, STREAM_WALK0 + WALK_STREAMS * index as u64 + component)
+}
 
 /// A ChaCha8 generator for `seed` on `stream`.
 pub(crate) fn stream(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -78,6 +78,20 @@ fn walk_i_does_not_depend_on_the_number_of_walks() {
 }
 
 #[test]
+fn changing_the_imu_model_leaves_wifi_and_truth_alone() {
+    let mut cfg = small_config();
+    cfg.walks = 1;
+    let a = generate(&cfg, 5).unwrap();
+    cfg.imu.accel_noise *= 2.0;
+    cfg.imu.gyro_bias_std *= 2.0;
+    let b = generate(&cfg, 5).unwrap();
+    assert_ne!(a.walks[0].walk.imu, b.walks[0].walk.imu);
+    assert_eq!(a.walks[0].walk.wifi, b.walks[0].walk.wifi);
+    assert_eq!(a.walks[0].walk.waypoints, b.walks[0].walk.waypoints);
+    assert_eq!(a.walks[0].truth.steps, b.walks[0].truth.steps);
+}
+
+#[test]
 fn walks_stay_in_walkable_space_and_cross_no_wall() {
     let s = sim();
     let plan = &s.world.floor.plan;

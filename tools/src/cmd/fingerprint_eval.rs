@@ -19,7 +19,9 @@ use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_fingerprint::benchmark::{self, Grid, Truth};
-use wipdr_fingerprint::cluster_search::{ClusteringMatchersConfig, build_matcher, is_clustering_matcher};
+use wipdr_fingerprint::cluster_search::{
+    ClusteringMatchersConfig, build_matcher, is_clustering_matcher,
+};
 use wipdr_fingerprint::{
     KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap, RadioMapConfig,
     Representation, Weighting,
@@ -172,7 +174,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         for spec in &args.matcher {
             // Issue 4's matchers (apc, apindex, med single-scan), default settings.
-            if let Some(m) = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())? {
+            if let Some(m) = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())?
+            {
                 let (score, qps) = benchmark::evaluate(m.as_ref(), &queries, &truth);
                 rows.push(Row {
                     dataset: name.clone(),

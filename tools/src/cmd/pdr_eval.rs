@@ -45,7 +45,7 @@ pub struct Args {
     /// Draw PDR against truth for some walks of each floor into this folder (PNG).
     #[arg(long)]
     pub plot_dir: Option<PathBuf>,
-    /// How many walks per floor to plot (the first by name).
+    /// How many walks per floor to plot (the longest).
     #[arg(long, default_value_t = 2)]
     pub plot_walks: usize,
     /// Cache folder for parsed floors.
@@ -58,7 +58,8 @@ pub struct Args {
 
 /// Reads a config file as JSON (`.json`) or TOML (anything else).
 pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     if path.extension().is_some_and(|e| e == "json") {
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
     } else {
@@ -67,7 +68,11 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
 }
 
 /// Reads floor folders (through the cache unless disabled).
-pub(crate) fn read_floors(dirs: &[PathBuf], cache_dir: &Path, no_cache: bool) -> Result<Vec<FloorData>> {
+pub(crate) fn read_floors(
+    dirs: &[PathBuf],
+    cache_dir: &Path,
+    no_cache: bool,
+) -> Result<Vec<FloorData>> {
     let opts = ReadOptions::default();
     dirs.iter()
         .map(|d| {
@@ -97,7 +102,11 @@ pub(crate) struct WalkRun {
 
 /// Runs `cfg` over every walk of a floor (parallel), with folds.
 pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
-    let ids: Vec<&str> = floor.walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+    let ids: Vec<&str> = floor
+        .walks
+        .iter()
+        .map(|w| w.walk.meta.id.as_str())
+        .collect();
     let folds = folds_by_name(&ids);
     floor
         .walks
@@ -122,7 +131,10 @@ pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
 fn walk_steps(runs: &[WalkRun], keep: impl Fn(&WalkRun) -> bool) -> Vec<WalkSteps<'_>> {
     runs.iter()
         .filter(|r| keep(r))
-        .map(|r| WalkSteps { steps: &r.steps, waypoints: &r.waypoints })
+        .map(|r| WalkSteps {
+            steps: &r.steps,
+            waypoints: &r.waypoints,
+        })
         .collect()
 }
 
@@ -134,7 +146,10 @@ pub(crate) fn calibrate(
     train: &[WalkSteps<'_>],
     cal: &CalibrationConfig,
 ) -> (StepLengthConfig, f64) {
-    let cal = CalibrationConfig { heading_source: source, ..*cal };
+    let cal = CalibrationConfig {
+        heading_source: source,
+        ..*cal
+    };
     let fitted = fit_step_length(model, train, &cal);
     let offset = if fit_offset {
         fit_heading_offset(&fitted, source, train, &cal).unwrap_or(0.0)
@@ -145,12 +160,20 @@ pub(crate) fn calibrate(
     if offset != 0.0 && cal.objective == wipdr_pdr::calibrate::FitObjective::Displacement {
         let shifted: Vec<Vec<StepDetail>> = train
             .iter()
-            .map(|w| w.steps.iter().map(|s| shift_heading(s, source, offset)).collect())
+            .map(|w| {
+                w.steps
+                    .iter()
+                    .map(|s| shift_heading(s, source, offset))
+                    .collect()
+            })
             .collect();
         let train2: Vec<WalkSteps<'_>> = shifted
             .iter()
             .zip(train)
-            .map(|(s, w)| WalkSteps { steps: s, waypoints: w.waypoints })
+            .map(|(s, w)| WalkSteps {
+                steps: s,
+                waypoints: w.waypoints,
+            })
             .collect();
         return (fit_step_length(model, &train2, &cal), offset);
     }
@@ -171,6 +194,9 @@ fn shift_heading(s: &StepDetail, source: HeadingSource, offset: f64) -> StepDeta
     }
     s
 }
+
+/// A walk's steps as `(t, length, heading)`.
+type Track = Vec<(TimestampMs, f64, f64)>;
 
 /// Errors collected for one scheme.
 #[derive(Default, Clone)]
@@ -208,7 +234,7 @@ fn score_floor(
     schemes: &[Scheme],
     cfg: &PdrConfig,
     cal: &CalibrationConfig,
-) -> Vec<(Collected, Vec<Vec<(TimestampMs, f64, f64)>>)> {
+) -> Vec<(Collected, Vec<Track>)> {
     schemes
         .par_iter()
         .map(|sc| {
@@ -222,29 +248,40 @@ fn score_floor(
             let mut tracks = vec![Vec::new(); runs.len()];
             for fold in 0..wipdr_core::stats::FOLDS {
                 let train = walk_steps(runs, |r| r.fold != fold);
-                let (model, offset) = if sc.fit_length || sc.fit_offset {
-                    let model = if sc.fit_length {
-                        calibrate(sc.model, sc.source, sc.fit_offset, &train, cal)
-                    } else {
-                        let c = CalibrationConfig { heading_source: sc.source, ..*cal };
-                        (sc.model, fit_heading_offset(&sc.model, sc.source, &train, &c).unwrap_or(0.0))
+                let (model, offset) = if sc.fit_length {
+                    calibrate(sc.model, sc.source, sc.fit_offset, &train, cal)
+                } else if sc.fit_offset {
+                    let c = CalibrationConfig {
+                        heading_source: sc.source,
+                        ..*cal
                     };
-                    model
+                    (
+                        sc.model,
+                        fit_heading_offset(&sc.model, sc.source, &train, &c).unwrap_or(0.0),
+                    )
                 } else {
                     (sc.model, 0.0)
                 };
                 col.offsets_deg.push(offset.to_degrees());
                 for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.fold == fold) {
-                    let shifted: Vec<StepDetail> =
-                        r.steps.iter().map(|s| shift_heading(s, sc.source, offset)).collect();
-                    let ws = WalkSteps { steps: &shifted, waypoints: &r.waypoints };
+                    let shifted: Vec<StepDetail> = r
+                        .steps
+                        .iter()
+                        .map(|s| shift_heading(s, sc.source, offset))
+                        .collect();
+                    let ws = WalkSteps {
+                        steps: &shifted,
+                        waypoints: &r.waypoints,
+                    };
                     for e in leg_errors(&ws, &model, sc.source, cal) {
                         col.leg_length_rel.push(e.length_rel);
                         col.leg_heading_deg.push(e.heading.to_degrees());
                     }
                     let tr = track(&r.steps, &model, sc.source, offset, min_len, max_len);
                     col.positions.extend(
-                        dead_reckon_at_waypoints(&tr, &r.waypoints, r.first_wifi).iter().map(|s| s.error),
+                        dead_reckon_at_waypoints(&tr, &r.waypoints, r.first_wifi)
+                            .iter()
+                            .map(|s| s.error),
                     );
                     tracks[i] = tr;
                 }
@@ -267,8 +304,17 @@ fn abs_summary(v: &[f64]) -> AbsSummary {
     let a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
     let s = ErrorStats::from_errors(&a);
     let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    let mean_signed = if finite.is_empty() { 0.0 } else { finite.iter().sum::<f64>() / finite.len() as f64 };
-    AbsSummary { count: s.count, median: s.p50, p90: s.p90, mean_signed }
+    let mean_signed = if finite.is_empty() {
+        0.0
+    } else {
+        finite.iter().sum::<f64>() / finite.len() as f64
+    };
+    AbsSummary {
+        count: s.count,
+        median: s.p50,
+        p90: s.p90,
+        mean_signed,
+    }
 }
 
 /// The position figures of a scheme, as the JSON holds them.
@@ -296,7 +342,10 @@ struct Report {
 }
 
 fn fmt_stats(s: &ErrorStats) -> String {
-    format!("{:>5} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>7.2}", s.count, s.mean, s.rms, s.p50, s.p75, s.p95, s.max)
+    format!(
+        "{:>5} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>7.2}",
+        s.count, s.mean, s.rms, s.p50, s.p75, s.p95, s.max
+    )
 }
 
 /// Runs the subcommand.
@@ -340,7 +389,11 @@ pub fn run(args: Args) -> Result<()> {
     ];
     let names: Vec<String> = StepLengthConfig::all_defaults()
         .iter()
-        .flat_map(|m| HeadingSource::ALL.iter().map(move |s| format!("{}/{}", m.name(), s.name())))
+        .flat_map(|m| {
+            HeadingSource::ALL
+                .iter()
+                .map(move |s| format!("{}/{}", m.name(), s.name()))
+        })
         .collect();
     let leaked: &'static [String] = Box::leak(names.into_boxed_slice());
     let mut k = 0;
@@ -365,11 +418,16 @@ pub fn run(args: Args) -> Result<()> {
     for floor in &floors {
         let base_runs = run_floor(floor, &base_cfg);
         let runs = run_floor(floor, &cfg);
-        steps_info.insert(floor.name.clone(), (runs.iter().map(|r| r.steps.len()).sum(), runs.len()));
+        steps_info.insert(
+            floor.name.clone(),
+            (runs.iter().map(|r| r.steps.len()).sum(), runs.len()),
+        );
         let scored = score_floor(&base_runs, &runs, &schemes, &cfg, &cal);
         for (i, (col, tracks)) in scored.iter().enumerate() {
             per_scheme[i].0.extend(col);
-            per_scheme[i].1.insert(floor.name.clone(), ErrorStats::from_errors(&col.positions));
+            per_scheme[i]
+                .1
+                .insert(floor.name.clone(), ErrorStats::from_errors(&col.positions));
             if let Some(dir) = &args.plot_dir
                 && schemes[i].name == "configured"
             {
@@ -397,7 +455,10 @@ pub fn run(args: Args) -> Result<()> {
 
     // Text report.
     println!("PDR-only from the true first waypoint, scored after the first Wi-Fi scan (m)");
-    println!("{:<22} {:<10} {:>5} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7}", "scheme", "floor", "n", "mean", "rms", "p50", "p75", "p95", "max");
+    println!(
+        "{:<22} {:<10} {:>5} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7}",
+        "scheme", "floor", "n", "mean", "rms", "p50", "p75", "p95", "max"
+    );
     for name in ["sample_code", "sample_code+scale", "configured"] {
         let r = &reports[name];
         for (f, s) in &r.floors {
@@ -406,7 +467,9 @@ pub fn run(args: Args) -> Result<()> {
         println!("{:<22} {:<10} {}", name, "pooled", fmt_stats(&r.pooled));
     }
     println!();
-    println!("Every model x heading source (fitted per fold), pooled; legs: |relative length error| and |heading error|");
+    println!(
+        "Every model x heading source (fitted per fold), pooled; legs: |relative length error| and |heading error|"
+    );
     println!(
         "{:<34} {:>6} {:>6} {:>6} | {:>6} {:>6} | {:>6} {:>6} | {:>6}",
         "model/source", "mean", "p50", "p95", "len50%", "len90%", "hdg50", "hdg90", "offset"
@@ -452,7 +515,9 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn positions_of(tr: &[(TimestampMs, f64, f64)], waypoints: &[Waypoint]) -> Vec<(f64, f64)> {
-    let Some(first) = waypoints.first() else { return Vec::new() };
+    let Some(first) = waypoints.first() else {
+        return Vec::new();
+    };
     let mut p = first.position;
     let mut out = vec![(p.x, p.y)];
     for &(t, l, h) in tr {
@@ -474,8 +539,19 @@ fn plot_walks(
     n: usize,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    // The longest walks (path through the waypoints), ties by name.
+    let path_len = |r: &WalkRun| -> f64 {
+        r.waypoints
+            .windows(2)
+            .map(|w| (w[1].position - w[0].position).norm())
+            .sum()
+    };
     let mut order: Vec<usize> = (0..runs.len()).collect();
-    order.sort_by(|&a, &b| runs[a].id.cmp(&runs[b].id));
+    order.sort_by(|&a, &b| {
+        path_len(&runs[b])
+            .total_cmp(&path_len(&runs[a]))
+            .then(runs[a].id.cmp(&runs[b].id))
+    });
     for &i in order.iter().take(n) {
         let r = &runs[i];
         let file = dir.join(format!("{}_{}.png", floor.name.replace('/', "_"), r.id));
@@ -485,22 +561,38 @@ fn plot_walks(
         let mut chart = crate::plotting::floor_chart(
             &root,
             &floor.plan,
-            &format!("{} {}: truth (black), sample code (red), configured (blue)", floor.name, r.id),
+            &format!(
+                "{} {}: truth (black), sample code (red), configured (blue)",
+                floor.name, r.id
+            ),
         )?;
         crate::plotting::draw_floor_plan(&mut chart, &floor.plan)?;
-        let truth: Vec<(f64, f64)> = r.waypoints.iter().map(|w| (w.position.x, w.position.y)).collect();
+        let truth: Vec<(f64, f64)> = r
+            .waypoints
+            .iter()
+            .map(|w| (w.position.x, w.position.y))
+            .collect();
         let err = |e| anyhow::anyhow!("plot: {e}");
-        chart.draw_series(LineSeries::new(truth.clone(), BLACK.stroke_width(2))).map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(truth.clone(), BLACK.stroke_width(2)))
+            .map_err(err)?;
         chart
             .draw_series(truth.iter().map(|&p| Circle::new(p, 4, BLACK.filled())))
             .map_err(err)?;
         chart
-            .draw_series(LineSeries::new(positions_of(&base_tracks[i], &r.waypoints), RED.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                positions_of(&base_tracks[i], &r.waypoints),
+                RED.stroke_width(2),
+            ))
             .map_err(err)?;
         chart
-            .draw_series(LineSeries::new(positions_of(&tracks[i], &r.waypoints), BLUE.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                positions_of(&tracks[i], &r.waypoints),
+                BLUE.stroke_width(2),
+            ))
             .map_err(err)?;
-        root.present().map_err(|e| anyhow::anyhow!("writing {}: {e}", file.display()))?;
+        root.present()
+            .map_err(|e| anyhow::anyhow!("writing {}: {e}", file.display()))?;
     }
     Ok(())
 }

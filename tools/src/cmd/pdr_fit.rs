@@ -109,13 +109,21 @@ pub fn run(args: Args) -> Result<()> {
     let train: Vec<WalkSteps<'_>> = runs
         .iter()
         .filter(|r| args.fold != Some(r.fold))
-        .map(|r| WalkSteps { steps: &r.steps, waypoints: &r.waypoints })
+        .map(|r| WalkSteps {
+            steps: &r.steps,
+            waypoints: &r.waypoints,
+        })
         .collect();
     if train.is_empty() {
         anyhow::bail!("no walks to fit on");
     }
-    let (model, offset) =
-        calibrate(cfg.step_length, cfg.heading.source, cal.fit_heading_offset, &train, &cal);
+    let (model, offset) = calibrate(
+        cfg.step_length,
+        cfg.heading.source,
+        cal.fit_heading_offset,
+        &train,
+        &cal,
+    );
     cfg.step_length = model;
     cfg.heading.map_offset_rad = offset;
 
