@@ -13,18 +13,23 @@
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
+use std::sync::Arc;
 use wipdr_core::Point2;
 use wipdr_fingerprint::affinity::{
     AffinityConfig, Kernel, Preference, SimilarityMatrix, affinity_propagation,
 };
-use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
-use std::sync::Arc;
 use wipdr_fingerprint::cluster_search::{ClusteringMatchersConfig, build_matcher};
-use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
+use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
+use wipdr_fingerprint::{
+    KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig,
+};
 use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_dataset, read_fingerprint_csv};
 
 fn data_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/fingerprint"))
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/fingerprint"
+    ))
 }
 
 fn tut3_similarity(rows: usize) -> Option<SimilarityMatrix<f32>> {
@@ -40,7 +45,10 @@ fn tut3_similarity(rows: usize) -> Option<SimilarityMatrix<f32>> {
         .iter()
         .map(|&v| if v == NOT_DETECTED { -110.0 } else { v })
         .collect();
-    let pos: Vec<Point2> = table.labels[..n].iter().map(|l| Point2::new(l.x, l.y)).collect();
+    let pos: Vec<Point2> = table.labels[..n]
+        .iter()
+        .map(|l| Point2::new(l.x, l.y))
+        .collect();
     let fp = Fingerprints::new(&rss, m, &pos, -110.0).ok()?;
     Some(signal_similarity(&fp))
 }

@@ -77,7 +77,10 @@ pub struct ApIndexMatcher {
 
 impl ApIndexMatcher {
     /// Builds the index.
-    pub fn new(map: impl Into<Arc<RadioMap>>, config: ApIndexConfig) -> Result<Self, FingerprintError> {
+    pub fn new(
+        map: impl Into<Arc<RadioMap>>,
+        config: ApIndexConfig,
+    ) -> Result<Self, FingerprintError> {
         let map: Arc<RadioMap> = map.into();
         if map.is_empty() {
             return Err(FingerprintError::EmptyMap);
@@ -119,7 +122,11 @@ impl ApIndexMatcher {
     }
 
     /// Locates a query, `moving` choosing the threshold.
-    pub fn locate_moving(&self, query: &Query, moving: bool) -> Result<WifiObservation, FingerprintError> {
+    pub fn locate_moving(
+        &self,
+        query: &Query,
+        moving: bool,
+    ) -> Result<WifiObservation, FingerprintError> {
         if query.heard.is_empty() {
             return Err(FingerprintError::EmptyScan);
         }
@@ -133,7 +140,11 @@ impl ApIndexMatcher {
             kept.heard.retain(|&(_, r)| r >= threshold);
             if kept.heard.is_empty() {
                 // Keep the strongest reading rather than fail.
-                if let Some(&best) = query.heard.iter().max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))) {
+                if let Some(&best) = query
+                    .heard
+                    .iter()
+                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+                {
                     kept.heard.push(best);
                 }
             }

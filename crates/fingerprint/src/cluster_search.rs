@@ -38,7 +38,9 @@
 
 use crate::affinity::{AffinityConfig, AffinityError, affinity_propagation_owned};
 use crate::matcher::{Weighting, observation_from_neighbours};
-use crate::mixdis::{MixDisConfig, OwnedFingerprints, SimilarityKind, similarity, squared_euclidean};
+use crate::mixdis::{
+    MixDisConfig, OwnedFingerprints, SimilarityKind, similarity, squared_euclidean,
+};
 use crate::{FingerprintError, Matcher, Query, RadioMap};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -190,7 +192,13 @@ pub(crate) fn shifted_norms(map: &RadioMap) -> Vec<f64> {
 /// Euclidean distance from a query to reference point `i` by the sparse identity of
 /// [`shifted_norms`] (clamped at 0 against rounding).
 #[inline]
-pub(crate) fn sparse_distance(map: &RadioMap, norms: &[f64], query: &Query, q_norm: f64, i: usize) -> f64 {
+pub(crate) fn sparse_distance(
+    map: &RadioMap,
+    norms: &[f64],
+    query: &Query,
+    q_norm: f64,
+    i: usize,
+) -> f64 {
     let f = f64::from(map.not_heard_dbm());
     let row = map.filled_row(i);
     let dot: f64 = query
@@ -221,7 +229,11 @@ pub(crate) fn wknn_over(
     weighting: Weighting,
     visited: usize,
 ) -> Result<WifiObservation, FingerprintError> {
-    if let Some(&(j, _)) = query.heard.iter().find(|&&(j, _)| j as usize >= map.n_aps()) {
+    if let Some(&(j, _)) = query
+        .heard
+        .iter()
+        .find(|&&(j, _)| j as usize >= map.n_aps())
+    {
         return Err(FingerprintError::DimensionMismatch {
             expected: map.n_aps(),
             found: j as usize + 1,
@@ -303,7 +315,9 @@ impl ClusterSearchMatcher {
                                 *a += f64::from(v);
                             }
                         }
-                        acc.iter().map(|a| (a / global.len() as f64) as f32).collect()
+                        acc.iter()
+                            .map(|a| (a / global.len() as f64) as f32)
+                            .collect()
                     }
                 };
                 clusters.push(MapCluster {
@@ -350,7 +364,13 @@ impl Matcher for ClusterSearchMatcher {
         let c = &self.config;
         format!(
             "apc(n={},clusters={},slack={},sim={:?},centre={:?},k={},damping={})",
-            c.n_strongest, c.clusters_searched, c.centre_slack, c.similarity, c.centre, c.k, c.affinity.damping
+            c.n_strongest,
+            c.clusters_searched,
+            c.centre_slack,
+            c.similarity,
+            c.centre,
+            c.k,
+            c.affinity.damping
         )
         .to_lowercase()
     }
@@ -406,7 +426,9 @@ impl Matcher for ClusterSearchMatcher {
         let chosen: Vec<usize> = dist
             .iter()
             .enumerate()
-            .take_while(|&(rank, &(d, _))| rank < self.config.clusters_searched.max(1) || d <= bound)
+            .take_while(|&(rank, &(d, _))| {
+                rank < self.config.clusters_searched.max(1) || d <= bound
+            })
             .map(|(_, &(_, c))| c)
             .collect();
         let members: Vec<usize> = chosen
@@ -456,7 +478,11 @@ fn parse_settings(spec: &str) -> Result<Vec<(String, String)>, FingerprintError>
         .map(|kv| {
             kv.split_once('=')
                 .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-                .ok_or_else(|| FingerprintError::InvalidConfig(format!("{spec}: expected key=value, got {kv:?}")))
+                .ok_or_else(|| {
+                    FingerprintError::InvalidConfig(format!(
+                        "{spec}: expected key=value, got {kv:?}"
+                    ))
+                })
         })
         .collect()
 }
@@ -470,7 +496,10 @@ fn parse_num<T: std::str::FromStr>(spec: &str, key: &str, v: &str) -> Result<T, 
 /// `k`, `clusters` (nearest clusters searched), `slack`, `centre` (exemplar|mean), `sim`
 /// (mixdis|signal), `damping`; `apindex`: `k`, `top` (offline APs indexed), `moving` (0|1),
 /// `threshold` (0|1); `med`: `k`, `window`.
-pub fn apply_spec(spec: &str, config: &mut ClusteringMatchersConfig) -> Result<(), FingerprintError> {
+pub fn apply_spec(
+    spec: &str,
+    config: &mut ClusteringMatchersConfig,
+) -> Result<(), FingerprintError> {
     let name = spec.split(':').next().unwrap_or("");
     for (k, v) in parse_settings(spec)? {
         let bad = || FingerprintError::InvalidConfig(format!("{spec}: unknown key {k:?}"));
@@ -546,7 +575,13 @@ mod tests {
                 let v = -35.0 - 2.5 * (x - c).abs();
                 if v < -95.0 { 100.0 } else { v.round() }
             };
-            csv += &format!("{},{},{},{},{x},0,0,0,0\n", a(0.0), a(10.0), a(20.0), a(29.0));
+            csv += &format!(
+                "{},{},{},{},{x},0,0,0,0\n",
+                a(0.0),
+                a(10.0),
+                a(20.0),
+                a(29.0)
+            );
         }
         let t = read_fingerprint_csv_from(csv.as_bytes(), "corridor").unwrap();
         RadioMap::from_table(&t, RadioMapConfig::default()).unwrap()
@@ -565,7 +600,10 @@ mod tests {
         assert_eq!(all, (0..30).collect::<Vec<_>>());
         assert!(apc.clusters().len() >= 2);
         let row: Vec<f32> = apc.map().filled_row(12).to_vec();
-        let raw: Vec<f32> = row.iter().map(|&v| if v == -110.0 { 100.0 } else { v }).collect();
+        let raw: Vec<f32> = row
+            .iter()
+            .map(|&v| if v == -110.0 { 100.0 } else { v })
+            .collect();
         let q = Query::from_row(&raw, apc.map(), &QueryFilter::default()).unwrap();
         let obs = apc.locate(&q).unwrap();
         assert!(obs.visited < 30);

@@ -259,7 +259,15 @@ mod tests {
     fn window_one_equals_single_scan_and_distance_is_euclidean() {
         let map = ambiguous();
         let f = QueryFilter::default();
-        let mut med = MedMatcher::new(map.clone(), MedConfig { window: 1, k: 1, ..Default::default() }).unwrap();
+        let mut med = MedMatcher::new(
+            map.clone(),
+            MedConfig {
+                window: 1,
+                k: 1,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let q = Query::from_row(&[-57.0, -64.0], &map, &f).unwrap();
         let a = med.locate_next(&q, Vector2::zeros()).unwrap();
         let b = med.locate(&q).unwrap();

@@ -256,9 +256,12 @@ fn plot_clusters(out: &std::path::Path, positions: &[Point2], c: &Clustering) ->
         .draw()
         .map_err(|e| anyhow::anyhow!("axes: {e}"))?;
     chart
-        .draw_series(positions.iter().zip(&c.labels).map(|(p, &l)| {
-            Circle::new((p.x, p.y), 3, palette(l).filled())
-        }))
+        .draw_series(
+            positions
+                .iter()
+                .zip(&c.labels)
+                .map(|(p, &l)| Circle::new((p.x, p.y), 3, palette(l).filled())),
+        )
         .map_err(err)?;
     chart
         .draw_series(c.exemplars.iter().enumerate().map(|(k, &e)| {
@@ -266,6 +269,7 @@ fn plot_clusters(out: &std::path::Path, positions: &[Point2], c: &Clustering) ->
             Cross::new((p.x, p.y), 7, palette(k).stroke_width(3))
         }))
         .map_err(err)?;
-    root.present().map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
+    root.present()
+        .map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
     Ok(())
 }
