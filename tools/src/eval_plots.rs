@@ -23,10 +23,19 @@ pub fn write_all(
     error_cdf(&dir.join("error-cdf.png"), report, schemes)?;
     n += 1;
     for (fi, floor) in floors.iter().enumerate() {
-        for pw in prepared.iter().filter(|p| p.floor_index == fi).take(walks_per_floor) {
+        for pw in prepared
+            .iter()
+            .filter(|p| p.floor_index == fi)
+            .take(walks_per_floor)
+        {
             let tracks = pipeline::tracks_of(floor, pw, cfg, schemes)?;
             let stem = format!("{}-{}", floor.label.replace('/', "-"), pw.walk);
-            trajectories(&dir.join(format!("{stem}-trajectories.png")), floor, pw, &tracks)?;
+            trajectories(
+                &dir.join(format!("{stem}-trajectories.png")),
+                floor,
+                pw,
+                &tracks,
+            )?;
             error_over_time(&dir.join(format!("{stem}-error.png")), pw, report, schemes)?;
             n += 2;
         }
@@ -76,12 +85,16 @@ fn error_cdf(path: &Path, report: &EvalReport, schemes: &[String]) -> Result<()>
         let colour = plotting::palette(i);
         chart
             .draw_series(LineSeries::new(
-                e.iter().enumerate().map(|(k, &v)| (v.min(xmax), (k + 1) as f64 / n)),
+                e.iter()
+                    .enumerate()
+                    .map(|(k, &v)| (v.min(xmax), (k + 1) as f64 / n)),
                 colour.stroke_width(2),
             ))
             .map_err(|e| anyhow!("{e}"))?
             .label(name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
+            });
     }
     chart
         .configure_series_labels()
@@ -91,7 +104,8 @@ fn error_cdf(path: &Path, report: &EvalReport, schemes: &[String]) -> Result<()>
         .label_font((FONT_FAMILY, 14))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
     Ok(())
 }
 
@@ -108,9 +122,16 @@ fn trajectories(
     let caption = format!("{} {} — schemes against truth", floor.label, walk.walk);
     let mut chart = plotting::floor_chart(&root, plan, &caption)?;
     plotting::draw_floor_plan(&mut chart, plan)?;
-    let truth: Vec<(f64, f64)> = walk.waypoints.iter().map(|p| (p.position.x, p.position.y)).collect();
+    let truth: Vec<(f64, f64)> = walk
+        .waypoints
+        .iter()
+        .map(|p| (p.position.x, p.position.y))
+        .collect();
     chart
-        .draw_series(std::iter::once(PathElement::new(truth.clone(), BLACK.stroke_width(3))))
+        .draw_series(std::iter::once(PathElement::new(
+            truth.clone(),
+            BLACK.stroke_width(3),
+        )))
         .map_err(|e| anyhow!("{e}"))?
         .label("truth (waypoints)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
@@ -122,13 +143,23 @@ fn trajectories(
         let pts: Vec<(f64, f64)> = track
             .iter()
             .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
-            .map(|(_, p)| (p.x.clamp(-50.0, plan.width + 50.0), p.y.clamp(-50.0, plan.height + 50.0)))
+            .map(|(_, p)| {
+                (
+                    p.x.clamp(-50.0, plan.width + 50.0),
+                    p.y.clamp(-50.0, plan.height + 50.0),
+                )
+            })
             .collect();
         chart
-            .draw_series(std::iter::once(PathElement::new(pts, colour.stroke_width(2))))
+            .draw_series(std::iter::once(PathElement::new(
+                pts,
+                colour.stroke_width(2),
+            )))
             .map_err(|e| anyhow!("{e}"))?
             .label(name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
+            });
     }
     chart
         .configure_series_labels()
@@ -138,11 +169,17 @@ fn trajectories(
         .label_font((FONT_FAMILY, 14))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
     Ok(())
 }
 
-fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, schemes: &[String]) -> Result<()> {
+fn error_over_time(
+    path: &Path,
+    walk: &PreparedWalk,
+    report: &EvalReport,
+    schemes: &[String],
+) -> Result<()> {
     plotting::init_fonts();
     let t0 = walk.waypoints.first().map(|w| w.t).unwrap_or(0);
     let series: Vec<(String, Vec<(f64, f64)>)> = schemes
@@ -155,7 +192,11 @@ fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, scheme
                 .map(|w| {
                     (
                         s.clone(),
-                        w.score.errors.iter().map(|&(t, e)| ((t - t0) as f64 / 1000.0, e)).collect(),
+                        w.score
+                            .errors
+                            .iter()
+                            .map(|&(t, e)| ((t - t0) as f64 / 1000.0, e))
+                            .collect(),
                     )
                 })
         })
@@ -171,7 +212,10 @@ fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, scheme
     let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{} {} — error at waypoints", walk.floor, walk.walk), (FONT_FAMILY, 20))
+        .caption(
+            format!("{} {} — error at waypoints", walk.floor, walk.walk),
+            (FONT_FAMILY, 20),
+        )
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
@@ -190,7 +234,9 @@ fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, scheme
             .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)).point_size(3))
             .map_err(|e| anyhow!("{e}"))?
             .label(name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
+            });
     }
     chart
         .configure_series_labels()
@@ -200,6 +246,7 @@ fn error_over_time(path: &Path, walk: &PreparedWalk, report: &EvalReport, scheme
         .label_font((FONT_FAMILY, 14))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
     Ok(())
 }

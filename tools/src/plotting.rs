@@ -52,9 +52,15 @@ pub type FloorChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, R
 pub fn floor_canvas_size(width: f64, height: f64, long_px: u32) -> (u32, u32) {
     let (w, h) = (width.max(1.0), height.max(1.0));
     if w >= h {
-        (long_px, ((long_px as f64) * h / w).round().max(200.0) as u32 + 60)
+        (
+            long_px,
+            ((long_px as f64) * h / w).round().max(200.0) as u32 + 60,
+        )
     } else {
-        (((long_px as f64) * w / h).round().max(200.0) as u32, long_px + 60)
+        (
+            ((long_px as f64) * w / h).round().max(200.0) as u32,
+            long_px + 60,
+        )
     }
 }
 

@@ -85,8 +85,13 @@ impl Polygon {
         if exterior.len() < 3 {
             return Err(CoreError::DegeneratePolygon(exterior.len()));
         }
-        if exterior.iter().any(|p| !p.x.is_finite() || !p.y.is_finite()) {
-            return Err(CoreError::NonFinite { field: "polygon vertex" });
+        if exterior
+            .iter()
+            .any(|p| !p.x.is_finite() || !p.y.is_finite())
+        {
+            return Err(CoreError::NonFinite {
+                field: "polygon vertex",
+            });
         }
         Ok(Self { exterior, holes })
     }

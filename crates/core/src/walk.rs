@@ -136,9 +136,18 @@ impl Walk {
                 hi = hi.max(b);
             }
         };
-        upd(self.waypoints.first().map(|r| r.t), self.waypoints.last().map(|r| r.t));
-        upd(self.wifi.first().map(|r| r.t), self.wifi.last().map(|r| r.t));
-        upd(self.beacons.first().map(|r| r.t), self.beacons.last().map(|r| r.t));
+        upd(
+            self.waypoints.first().map(|r| r.t),
+            self.waypoints.last().map(|r| r.t),
+        );
+        upd(
+            self.wifi.first().map(|r| r.t),
+            self.wifi.last().map(|r| r.t),
+        );
+        upd(
+            self.beacons.first().map(|r| r.t),
+            self.beacons.last().map(|r| r.t),
+        );
         let imu = &self.imu;
         for s in [&imu.accelerometer, &imu.gyroscope, &imu.magnetometer] {
             upd(s.first().map(|r| r.t), s.last().map(|r| r.t));
@@ -187,7 +196,11 @@ impl Walk {
                 .iter()
                 .map(Record::AccelerometerUncalibrated),
         );
-        out.extend(imu.gyroscope_uncalibrated.iter().map(Record::GyroscopeUncalibrated));
+        out.extend(
+            imu.gyroscope_uncalibrated
+                .iter()
+                .map(Record::GyroscopeUncalibrated),
+        );
         out.extend(
             imu.magnetometer_uncalibrated
                 .iter()
@@ -239,11 +252,22 @@ mod tests {
 
     #[test]
     fn interpolation() {
-        let w = [wp(0, 0.0, 0.0), wp(1000, 10.0, 0.0), wp(1000, 10.0, 0.0), wp(3000, 10.0, 20.0)];
+        let w = [
+            wp(0, 0.0, 0.0),
+            wp(1000, 10.0, 0.0),
+            wp(1000, 10.0, 0.0),
+            wp(3000, 10.0, 20.0),
+        ];
         assert_eq!(interpolate_waypoints(&w, -1), None);
         assert_eq!(interpolate_waypoints(&w, 500), Some(Point2::new(5.0, 0.0)));
-        assert_eq!(interpolate_waypoints(&w, 2000), Some(Point2::new(10.0, 10.0)));
-        assert_eq!(interpolate_waypoints(&w, 3000), Some(Point2::new(10.0, 20.0)));
+        assert_eq!(
+            interpolate_waypoints(&w, 2000),
+            Some(Point2::new(10.0, 10.0))
+        );
+        assert_eq!(
+            interpolate_waypoints(&w, 3000),
+            Some(Point2::new(10.0, 20.0))
+        );
         assert_eq!(interpolate_waypoints(&w, 3001), None);
         assert_eq!(interpolate_waypoints(&[], 0), None);
     }

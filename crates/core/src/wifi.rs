@@ -159,7 +159,11 @@ mod tests {
     fn dedup_keeps_most_recent() {
         let mut s = WifiScan {
             t: 100,
-            entries: vec![entry(1, -50.0, 10), entry(2, -60.0, 20), entry(1, -70.0, 30)],
+            entries: vec![
+                entry(1, -50.0, 10),
+                entry(2, -60.0, 20),
+                entry(1, -70.0, 30),
+            ],
         };
         assert_eq!(s.dedup_keep_most_recent(), 1);
         assert_eq!(s.entries.len(), 2);
@@ -168,7 +172,13 @@ mod tests {
 
     #[test]
     fn bssid_rejects_garbage() {
-        for bad in ["", "zz:00:00:00:00:00", "00:00:00:00:00:00:00", "000:0:0:0:0:0", "::::"] {
+        for bad in [
+            "",
+            "zz:00:00:00:00:00",
+            "00:00:00:00:00:00:00",
+            "000:0:0:0:0:0",
+            "::::",
+        ] {
             assert!(bad.parse::<Bssid>().is_err(), "{bad}");
         }
         assert_eq!("ff:ff:ff:ff:ff:ff".parse::<Bssid>().unwrap().0, Bssid::MAX);

@@ -248,7 +248,8 @@ fn prepare_fold(
         fold,
         source,
     };
-    let (map, report) = build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
+    let (map, report) =
+        build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
     tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
     let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
     let pdr_cfg = if cfg.calibrate_pdr {
@@ -313,7 +314,11 @@ pub fn run_scheme(
     seed: u64,
 ) -> Result<Track, EvalError> {
     let is_pdr_baseline = scheme.name() == "pdr";
-    let start = if is_pdr_baseline { walk.true_start() } else { None };
+    let start = if is_pdr_baseline {
+        walk.true_start()
+    } else {
+        None
+    };
     let ctx = BuildContext {
         walls,
         seed: walk_seed(seed, &walk.walk),
@@ -355,7 +360,10 @@ pub fn run_prepared(
     schemes: &[String],
     on_done: &(dyn Fn() + Sync),
 ) -> Result<EvalReport, EvalError> {
-    let configs: Vec<SchemeConfig> = schemes.iter().map(|s| cfg.scheme(s)).collect::<Result<_, _>>()?;
+    let configs: Vec<SchemeConfig> = schemes
+        .iter()
+        .map(|s| cfg.scheme(s))
+        .collect::<Result<_, _>>()?;
     let walls: Vec<Arc<WallIndex>> = floors
         .iter()
         .map(|f| Arc::new(WallIndex::new(&f.data.plan.walls)))
@@ -367,8 +375,17 @@ pub fn run_prepared(
         .par_iter()
         .map(|&(w, s)| {
             let pw = &prepared[w];
-            let track = run_scheme(&configs[s], pw, Some(walls[pw.floor_index].clone()), cfg.seed)?;
-            let from = if cfg.score_from_first_scan { pw.first_scan_t } else { None };
+            let track = run_scheme(
+                &configs[s],
+                pw,
+                Some(walls[pw.floor_index].clone()),
+                cfg.seed,
+            )?;
+            let from = if cfg.score_from_first_scan {
+                pw.first_scan_t
+            } else {
+                None
+            };
             let score = score_track(&pw.waypoints, &track, from);
             on_done();
             Ok(WalkResult {
@@ -409,7 +426,12 @@ pub fn tracks_of(
     let walls = Some(Arc::new(WallIndex::new(&floor.data.plan.walls)));
     schemes
         .iter()
-        .map(|s| Ok((s.clone(), run_scheme(&cfg.scheme(s)?, walk, walls.clone(), cfg.seed)?)))
+        .map(|s| {
+            Ok((
+                s.clone(),
+                run_scheme(&cfg.scheme(s)?, walk, walls.clone(), cfg.seed)?,
+            ))
+        })
         .collect()
 }
 

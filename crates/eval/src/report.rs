@@ -94,7 +94,11 @@ pub struct EvalReport {
 
 impl EvalReport {
     /// Builds the summaries from per-walk results.
-    pub fn from_walks(schemes: Vec<String>, floor_order: Vec<String>, walks: Vec<WalkResult>) -> Self {
+    pub fn from_walks(
+        schemes: Vec<String>,
+        floor_order: Vec<String>,
+        walks: Vec<WalkResult>,
+    ) -> Self {
         let mut pooled = BTreeMap::new();
         let mut floors: BTreeMap<String, BTreeMap<String, Summary>> = BTreeMap::new();
         for s in &schemes {
@@ -165,7 +169,11 @@ mod tests {
             fold: 0,
             scheme: scheme.into(),
             score: WalkScore {
-                errors: errs.iter().enumerate().map(|(i, &e)| (i as i64, e)).collect(),
+                errors: errs
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &e)| (i as i64, e))
+                    .collect(),
                 skipped: 1,
             },
         }
@@ -178,7 +186,11 @@ mod tests {
             result("B", "w2", "ekf", &[3.0]),
             result("A", "w1", "pdr", &[5.0]),
         ];
-        let r = EvalReport::from_walks(vec!["ekf".into(), "pdr".into()], vec!["A".into(), "B".into()], walks);
+        let r = EvalReport::from_walks(
+            vec!["ekf".into(), "pdr".into()],
+            vec!["A".into(), "B".into()],
+            walks,
+        );
         let p = r.pooled["ekf"];
         assert_eq!(p.count, 3);
         assert_eq!(p.skipped, 2);

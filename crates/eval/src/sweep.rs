@@ -199,7 +199,12 @@ impl SweepSpec {
     pub fn columns(&self) -> Vec<String> {
         let mut cols: Vec<String> = self.grid.keys().cloned().collect();
         if let Some(r) = &self.random {
-            cols.extend(r.ranges.keys().filter(|k| !self.grid.contains_key(*k)).cloned());
+            cols.extend(
+                r.ranges
+                    .keys()
+                    .filter(|k| !self.grid.contains_key(*k))
+                    .cloned(),
+            );
         }
         cols
     }
@@ -240,7 +245,9 @@ impl SweepSpec {
                         )));
                     }
                     if self.grid.contains_key(k) {
-                        return Err(SweepError::Spec(format!("{k:?} is in both grid and random")));
+                        return Err(SweepError::Spec(format!(
+                            "{k:?} is in both grid and random"
+                        )));
                     }
                 }
                 (0..r.samples)
@@ -256,7 +263,9 @@ impl SweepSpec {
                                     rg.min + u * (rg.max - rg.min)
                                 };
                                 let v = if rg.integer {
-                                    Value::from(x.round().clamp(rg.min.ceil(), rg.max.floor()) as i64)
+                                    Value::from(
+                                        x.round().clamp(rg.min.ceil(), rg.max.floor()) as i64
+                                    )
                                 } else {
                                     // Keep 6 significant digits so ids stay readable.
                                     Value::from(format!("{x:.6e}").parse::<f64>().unwrap_or(x))
@@ -300,9 +309,7 @@ pub fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(), SweepE
             let known: Vec<&String> = obj.keys().collect();
             return Err(err(&format!("no field {part:?} (fields: {known:?})")));
         }
-        let slot = obj
-            .get_mut(*part)
-            .ok_or_else(|| err("field vanished"))?;
+        let slot = obj.get_mut(*part).ok_or_else(|| err("field vanished"))?;
         if i + 1 == parts.len() {
             *slot = value;
             return Ok(());
@@ -317,7 +324,10 @@ pub fn shard(points: Vec<SweepPoint>, shard: usize, shards: usize) -> Vec<SweepP
     if shards <= 1 {
         return points;
     }
-    points.into_iter().filter(|p| p.index % shards == shard).collect()
+    points
+        .into_iter()
+        .filter(|p| p.index % shards == shard)
+        .collect()
 }
 
 /// One finished config.
@@ -336,7 +346,15 @@ pub struct SweepRow {
 }
 
 const FIGURES: [&str; 9] = [
-    "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max", "objective",
+    "count",
+    "skipped",
+    "mean",
+    "rms",
+    "p50",
+    "p75",
+    "p95",
+    "max",
+    "objective",
 ];
 
 /// The results file: appends finished rows at once, resumes, canonicalises.
@@ -362,7 +380,9 @@ fn header(columns: &[String]) -> Vec<String> {
 }
 
 fn csv_line(fields: &[String]) -> String {
-    let mut w = csv::WriterBuilder::new().has_headers(false).from_writer(vec![]);
+    let mut w = csv::WriterBuilder::new()
+        .has_headers(false)
+        .from_writer(vec![]);
     // Writing to a Vec cannot fail.
     let _ = w.write_record(fields);
     let bytes = w.into_inner().unwrap_or_default();
@@ -387,7 +407,10 @@ impl ResultsFile {
     ) -> Result<(Self, Vec<SweepRow>), SweepError> {
         let expected = header(&columns);
         let mut rows = Vec::new();
-        let exists = path.exists() && std::fs::metadata(path).map(|m| m.len() > 0).unwrap_or(false);
+        let exists = path.exists()
+            && std::fs::metadata(path)
+                .map(|m| m.len() > 0)
+                .unwrap_or(false);
         if exists && !resume {
             return Err(SweepError::Spec(format!(
                 "{} exists: pass --resume to continue it, or choose another --out",
@@ -404,7 +427,10 @@ impl ResultsFile {
             }
             std::fs::write(path, csv_line(&expected)).map_err(io_err(path))?;
         }
-        let file = OpenOptions::new().append(true).open(path).map_err(io_err(path))?;
+        let file = OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map_err(io_err(path))?;
         Ok((
             Self {
                 path: path.to_path_buf(),
@@ -416,7 +442,12 @@ impl ResultsFile {
     }
 
     /// Appends and flushes one finished config (thread-safe).
-    pub fn append(&self, point: &SweepPoint, summary: &Summary, objective: Objective) -> Result<SweepRow, SweepError> {
+    pub fn append(
+        &self,
+        point: &SweepPoint,
+        summary: &Summary,
+        objective: Objective,
+    ) -> Result<SweepRow, SweepError> {
         let params: Vec<String> = self
             .columns
             .iter()
@@ -520,7 +551,10 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             continue;
         }
         if fields.len() != expected.len() {
-            return Err(bad(line, format!("{} fields, expected {}", fields.len(), expected.len())));
+            return Err(bad(
+                line,
+                format!("{} fields, expected {}", fields.len(), expected.len()),
+            ));
         }
         let num = |j: usize| -> Result<f64, SweepError> {
             fields[j]
@@ -642,7 +676,10 @@ mod tests {
     #[test]
     fn shards_partition_the_sweep() {
         let all = spec().expand().unwrap();
-        let mut seen: Vec<usize> = (0..3).flat_map(|i| shard(all.clone(), i, 3)).map(|p| p.index).collect();
+        let mut seen: Vec<usize> = (0..3)
+            .flat_map(|i| shard(all.clone(), i, 3))
+            .map(|p| p.index)
+            .collect();
         seen.sort();
         assert_eq!(seen, (0..all.len()).collect::<Vec<_>>());
     }
@@ -653,7 +690,11 @@ mod tests {
         let path = dir.path().join("r.csv");
         let s = spec();
         let pts = s.expand().unwrap();
-        let sum = Summary { count: 3, mean: 1.5, ..Default::default() };
+        let sum = Summary {
+            count: 3,
+            mean: 1.5,
+            ..Default::default()
+        };
         {
             let (f, rows) = ResultsFile::open(&path, s.columns(), false).unwrap();
             assert!(rows.is_empty());
@@ -671,7 +712,10 @@ mod tests {
         assert!(done.contains(&pts[2].id()));
         f.append(&pts[1], &sum, Objective::Mean).unwrap();
         let rows = f.finish().unwrap();
-        assert_eq!(rows.iter().map(|r| r.index).collect::<Vec<_>>(), vec![0, 1, 2]);
+        assert_eq!(
+            rows.iter().map(|r| r.index).collect::<Vec<_>>(),
+            vec![0, 1, 2]
+        );
         let merged = dir.path().join("m.csv");
         let m = merge(&[path.clone(), path], &merged).unwrap();
         assert_eq!(m.len(), 3);
@@ -725,7 +769,8 @@ pub fn config_for(
         };
         set_path(&mut v, &full, value.clone())?;
     }
-    serde_json::from_value(v).map_err(|e| SweepError::Spec(format!("config of sweep point {}: {e}", point.index)))
+    serde_json::from_value(v)
+        .map_err(|e| SweepError::Spec(format!("config of sweep point {}: {e}", point.index)))
 }
 
 /// Runs a sweep over prepared floors: configs grouped by what [`crate::pipeline::prepare`]
@@ -745,13 +790,20 @@ pub fn run_sweep(
     let mut points = spec.expand().map_err(to_eval)?;
     if let Some((i, n)) = options.shard {
         if n == 0 || i >= n {
-            return Err(to_eval(SweepError::Spec(format!("shard {i}/{n}: need I < N"))));
+            return Err(to_eval(SweepError::Spec(format!(
+                "shard {i}/{n}: need I < N"
+            ))));
         }
         points = shard(points, i, n);
     }
-    let (file, done_rows) = ResultsFile::open(out, spec.columns(), options.resume).map_err(to_eval)?;
+    let (file, done_rows) =
+        ResultsFile::open(out, spec.columns(), options.resume).map_err(to_eval)?;
     let done = finished_ids(&done_rows);
-    let todo: Vec<SweepPoint> = points.iter().filter(|p| !done.contains(&p.id())).cloned().collect();
+    let todo: Vec<SweepPoint> = points
+        .iter()
+        .filter(|p| !done.contains(&p.id()))
+        .cloned()
+        .collect();
     let skipped = points.len() - todo.len();
     let budget = options.max_configs.unwrap_or(usize::MAX).min(todo.len());
     let todo = &todo[..budget];
@@ -772,7 +824,8 @@ pub fn run_sweep(
         let results: Vec<Result<(), crate::pipeline::EvalError>> = group
             .par_iter()
             .map(|(p, cfg)| {
-                let report = crate::pipeline::run_prepared(floors, &prepared, cfg, &schemes, &|| {})?;
+                let report =
+                    crate::pipeline::run_prepared(floors, &prepared, cfg, &schemes, &|| {})?;
                 let summary = report.pooled.get(&spec.scheme).copied().unwrap_or_default();
                 file.append(p, &summary, spec.objective).map_err(to_eval)?;
                 on_done();

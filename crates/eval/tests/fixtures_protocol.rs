@@ -62,7 +62,11 @@ fn test_walk_waypoints_never_reach_a_scheme() {
         assert_eq!(a.walk, b.walk);
         if a.fold == victim_fold {
             assert_eq!(a.steps, b.steps, "steps of {} changed", a.walk);
-            assert_eq!(a.observations, b.observations, "observations of {} changed", a.walk);
+            assert_eq!(
+                a.observations, b.observations,
+                "observations of {} changed",
+                a.walk
+            );
         }
     }
     // Every fused scheme's track of the victim is unchanged.
@@ -90,21 +94,38 @@ fn per_walk_and_pooled_figures_agree() {
     let report = pipeline::evaluate(std::slice::from_ref(&floor), &cfg, &schemes, &|| {}).unwrap();
     for s in &schemes {
         let walks: Vec<_> = report.walks.iter().filter(|w| &w.scheme == s).collect();
-        assert_eq!(walks.len(), floor.data.walks.len(), "every walk is tested once");
+        assert_eq!(
+            walks.len(),
+            floor.data.walks.len(),
+            "every walk is tested once"
+        );
         let pooled = report.pooled[s];
         let n: usize = walks.iter().map(|w| w.score.errors.len()).sum();
         let skipped: usize = walks.iter().map(|w| w.score.skipped).sum();
-        let total_wp: usize = floor.data.walks.iter().map(|w| w.walk.waypoints.len()).sum();
+        let total_wp: usize = floor
+            .data
+            .walks
+            .iter()
+            .map(|w| w.walk.waypoints.len())
+            .sum();
         assert_eq!(pooled.count, n);
         assert_eq!(pooled.skipped, skipped);
-        assert_eq!(n + skipped, total_wp, "every waypoint is scored or counted as skipped");
+        assert_eq!(
+            n + skipped,
+            total_wp,
+            "every waypoint is scored or counted as skipped"
+        );
         let mean = walks.iter().flat_map(|w| w.score.values()).sum::<f64>() / n as f64;
         assert!((pooled.mean - mean).abs() < 1e-9);
         assert_eq!(report.floors["fixture"][s], pooled);
         assert!(pooled.mean.is_finite() && pooled.mean > 0.0);
     }
     // On the synthetic floor Wi-Fi works: fixes within a few metres.
-    assert!(report.pooled["wifi"].mean < 10.0, "{:?}", report.pooled["wifi"]);
+    assert!(
+        report.pooled["wifi"].mean < 10.0,
+        "{:?}",
+        report.pooled["wifi"]
+    );
 }
 
 #[test]
@@ -129,7 +150,15 @@ fn interrupted_and_resumed_sweep_equals_uninterrupted() {
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.csv");
     let resumed = dir.path().join("resumed.csv");
-    let o = sweep::run_sweep(&spec, &base, &floors, &full, &SweepOptions::default(), &|| {}).unwrap();
+    let o = sweep::run_sweep(
+        &spec,
+        &base,
+        &floors,
+        &full,
+        &SweepOptions::default(),
+        &|| {},
+    )
+    .unwrap();
     assert!(o.complete);
     assert_eq!(o.rows.len(), 4);
 
@@ -141,7 +170,17 @@ fn interrupted_and_resumed_sweep_equals_uninterrupted() {
     assert!(!o1.complete);
     assert_eq!(o1.rows.len(), 1);
     // Without --resume an existing file is never overwritten.
-    assert!(sweep::run_sweep(&spec, &base, &floors, &resumed, &SweepOptions::default(), &|| {}).is_err());
+    assert!(
+        sweep::run_sweep(
+            &spec,
+            &base,
+            &floors,
+            &resumed,
+            &SweepOptions::default(),
+            &|| {}
+        )
+        .is_err()
+    );
     let resume = SweepOptions {
         resume: true,
         ..SweepOptions::default()
@@ -170,6 +209,10 @@ fn interrupted_and_resumed_sweep_equals_uninterrupted() {
         std::fs::read_to_string(&full).unwrap(),
         std::fs::read_to_string(&merged).unwrap()
     );
-    let best = o.rows.iter().map(|r| r.objective).fold(f64::INFINITY, f64::min);
+    let best = o
+        .rows
+        .iter()
+        .map(|r| r.objective)
+        .fold(f64::INFINITY, f64::min);
     assert!(best.is_finite());
 }

@@ -37,6 +37,7 @@
 //! ```
 
 use crate::affinity::{AffinityConfig, AffinityError, affinity_propagation_owned};
+use crate::kmeans::{KMeansConfig, kmeans};
 use crate::matcher::{Weighting, observation_from_neighbours};
 use crate::mixdis::{
     MixDisConfig, OwnedFingerprints, SimilarityKind, similarity, squared_euclidean,
@@ -69,6 +70,21 @@ pub enum ClusterFallback {
     AllClusters,
 }
 
+/// How the map is clustered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ClusterMethod {
+    /// Affinity propagation (paper 001 §2.2).
+    #[default]
+    AffinityPropagation,
+    /// K-means baseline ([`crate::kmeans`]) with `ceil(points / mean_size)` clusters per
+    /// (building, floor) group; the exemplar is the member nearest to the centroid.
+    KMeans {
+        /// Target mean cluster size.
+        mean_size: usize,
+    },
+}
+
 /// Settings of the cluster-search matcher (paper 001 defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -95,6 +111,8 @@ pub struct ClusterSearchConfig {
     /// Search the members of this many nearest clusters (1 = the paper's rule); combined with
     /// `centre_slack`, the larger set wins.
     pub clusters_searched: usize,
+    /// Clustering method (paper: affinity propagation).
+    pub method: ClusterMethod,
 }
 
 impl Default for ClusterSearchConfig {
@@ -110,6 +128,7 @@ impl Default for ClusterSearchConfig {
             fallback: ClusterFallback::ReduceThenAll,
             centre_slack: 1.0,
             clusters_searched: 1,
+            method: ClusterMethod::AffinityPropagation,
         }
     }
 }
@@ -149,6 +168,12 @@ pub struct ClusterSearchMatcher {
     clusters: Vec<MapCluster>,
     report: ClusterBuildReport,
     norms: Vec<f64>,
+}
+
+/// Exemplars (group-local indices) and members of one group's clusters.
+struct GroupClusters {
+    exemplars: Vec<usize>,
+    members: Vec<Vec<usize>>,
 }
 
 /// Converts an affinity error into the crate's error.
@@ -291,18 +316,68 @@ impl ClusterSearchMatcher {
         };
         for members in groups.values() {
             let fp = OwnedFingerprints::from_map(&map, members);
-            let s = similarity(&fp.view(), config.similarity, &config.mixdis);
-            let c = affinity_propagation_owned(s, &config.affinity).map_err(ap_error)?;
-            report.iterations += c.iterations;
-            if !c.converged() {
-                report.not_converged += 1;
-                tracing::warn!(
-                    points = members.len(),
-                    iterations = c.iterations,
-                    "affinity propagation did not converge on a floor group; using the last exemplars"
-                );
+            let (exemplars, labels) = match config.method {
+                ClusterMethod::AffinityPropagation => {
+                    let s = similarity(&fp.view(), config.similarity, &config.mixdis);
+                    let c = affinity_propagation_owned(s, &config.affinity).map_err(ap_error)?;
+                    report.iterations += c.iterations;
+                    if !c.converged() {
+                        report.not_converged += 1;
+                        tracing::warn!(
+                            points = members.len(),
+                            iterations = c.iterations,
+                            "affinity propagation did not converge on a floor group; using the last exemplars"
+                        );
+                    }
+                    (c.exemplars, c.labels)
+                }
+                ClusterMethod::KMeans { mean_size } => {
+                    let k = members.len().div_ceil(mean_size.max(1));
+                    let km = kmeans(
+                        &fp.rss,
+                        fp.n_aps,
+                        &KMeansConfig {
+                            k,
+                            ..KMeansConfig::default()
+                        },
+                    )?;
+                    report.iterations += km.iterations;
+                    if !km.converged {
+                        report.not_converged += 1;
+                    }
+                    // Exemplar: the member nearest to its centroid; empty clusters dropped.
+                    let dim = fp.n_aps;
+                    let mut best: Vec<Option<(f32, usize)>> = vec![None; km.k];
+                    for (i, &l) in km.labels.iter().enumerate() {
+                        let d = squared_euclidean(
+                            &fp.rss[i * dim..(i + 1) * dim],
+                            &km.centres[l * dim..(l + 1) * dim],
+                        );
+                        if best[l].is_none_or(|(bd, _)| d < bd) {
+                            best[l] = Some((d, i));
+                        }
+                    }
+                    let mut renumber = vec![usize::MAX; km.k];
+                    let mut exemplars = Vec::new();
+                    for (l, b) in best.iter().enumerate() {
+                        if let Some((_, i)) = b {
+                            renumber[l] = exemplars.len();
+                            exemplars.push(*i);
+                        }
+                    }
+                    let labels = km.labels.iter().map(|&l| renumber[l]).collect();
+                    (exemplars, labels)
+                }
+            };
+            let mut grouped = vec![Vec::new(); exemplars.len()];
+            for (i, &l) in labels.iter().enumerate() {
+                grouped[l].push(i);
             }
-            for (k, local) in c.members().into_iter().enumerate() {
+            let c = GroupClusters {
+                exemplars,
+                members: grouped,
+            };
+            for (k, local) in c.members.into_iter().enumerate() {
                 let exemplar = members[c.exemplars[k]];
                 let global: Vec<usize> = local.iter().map(|&l| members[l]).collect();
                 let ap_set: Vec<u32> = map.heard(exemplar).map(|(j, _)| j as u32).collect();
@@ -363,14 +438,15 @@ impl Matcher for ClusterSearchMatcher {
     fn name(&self) -> String {
         let c = &self.config;
         format!(
-            "apc(n={},clusters={},slack={},sim={:?},centre={:?},k={},damping={})",
+            "apc(n={},clusters={},slack={},sim={:?},centre={:?},k={},damping={},method={:?})",
             c.n_strongest,
             c.clusters_searched,
             c.centre_slack,
             c.similarity,
             c.centre,
             c.k,
-            c.affinity.damping
+            c.affinity.damping,
+            c.method
         )
         .to_lowercase()
     }
@@ -494,7 +570,7 @@ fn parse_num<T: std::str::FromStr>(spec: &str, key: &str, v: &str) -> Result<T, 
 
 /// Applies `NAME:key=value,...` settings to `config`. Keys: `apc`: `n` (strongest APs),
 /// `k`, `clusters` (nearest clusters searched), `slack`, `centre` (exemplar|mean), `sim`
-/// (mixdis|signal), `damping`; `apindex`: `k`, `top` (offline APs indexed), `moving` (0|1),
+/// (mixdis|signal), `damping`, `kmeans` (K-means baseline with this mean cluster size); `apindex`: `k`, `top` (offline APs indexed), `moving` (0|1),
 /// `threshold` (0|1); `med`: `k`, `window`.
 pub fn apply_spec(
     spec: &str,
@@ -509,6 +585,11 @@ pub fn apply_spec(
             ("apc", "clusters") => config.apc.clusters_searched = parse_num(spec, &k, &v)?,
             ("apc", "slack") => config.apc.centre_slack = parse_num(spec, &k, &v)?,
             ("apc", "damping") => config.apc.affinity.damping = parse_num(spec, &k, &v)?,
+            ("apc", "kmeans") => {
+                config.apc.method = ClusterMethod::KMeans {
+                    mean_size: parse_num(spec, &k, &v)?,
+                }
+            }
             ("apc", "centre") => {
                 config.apc.centre = match v.as_str() {
                     "exemplar" => ClusterCentre::Exemplar,
@@ -610,6 +691,49 @@ mod tests {
         assert!((obs.estimate.x - 12.0).abs() < 3.0, "{}", obs.estimate.x);
         let wsum: f64 = obs.candidates.iter().map(|c| c.weight).sum();
         assert!((wsum - 1.0).abs() < 1e-9);
+    }
+
+    /// DSI1 (real data, when present): the signal-similarity cluster search searching the 3
+    /// nearest matching clusters visits under 25 % of the map with a mean error at most 5 %
+    /// above brute-force WKNN (measured: 5.11 m vs 5.32 m, 5.4 % visited).
+    #[test]
+    fn real_dsi1_cluster_search_visits_a_quarter_at_brute_force_accuracy() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/fingerprint/DSI1"
+        );
+        if !std::path::Path::new(dir).exists() {
+            eprintln!("skipping: {dir} not found");
+            return;
+        }
+        let (train, test) = wipdr_io::fingerprint_csv::read_dataset(dir).unwrap();
+        let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).unwrap());
+        let mut cfg = ClusteringMatchersConfig::default();
+        apply_spec("apc:sim=signal,clusters=3", &mut cfg).unwrap();
+        let apc = ClusterSearchMatcher::build(map.clone(), &cfg.apc).unwrap();
+        let brute = crate::KnnMatcher::new(map.clone(), crate::KnnConfig::default()).unwrap();
+        let (mut e_apc, mut e_brute, mut visited, mut n) = (0.0, 0.0, 0usize, 0usize);
+        for i in 0..test.n_rows() {
+            let Ok(q) = Query::from_row(test.row(i), &map, &QueryFilter::default()) else {
+                continue;
+            };
+            let truth = wipdr_core::Point2::new(test.labels[i].x, test.labels[i].y);
+            let a = apc.locate(&q).unwrap();
+            let b = brute.locate(&q).unwrap();
+            e_apc += (a.estimate - truth).norm();
+            e_brute += (b.estimate - truth).norm();
+            visited += a.visited;
+            n += 1;
+        }
+        let frac = visited as f64 / (n * map.len()) as f64;
+        eprintln!(
+            "DSI1: apc {:.3} m, wknn {:.3} m, visited {frac:.3}, {:?}",
+            e_apc / n as f64,
+            e_brute / n as f64,
+            apc.report()
+        );
+        assert!(frac < 0.25);
+        assert!(e_apc <= 1.05 * e_brute);
     }
 
     #[test]

@@ -64,5 +64,6 @@ pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
 pub mod affinity;
 pub mod ap_index;
 pub mod cluster_search;
+pub mod kmeans;
 pub mod med;
 pub mod mixdis;

@@ -56,6 +56,7 @@ pub mod ekf;
 pub mod kalman;
 pub mod particle;
 pub mod resample;
+pub mod robust_offset;
 pub mod synthetic;
 pub mod tcpf;
 pub mod walls;
@@ -71,6 +72,7 @@ pub use baseline::{PdrOnly, PdrOnlyConfig, WifiOnly, WifiOnlyConfig};
 pub use ekf::{Adaptation, EkfConfig, ErrorStateEkf, RobustConfig, RobustMode, Scenario};
 pub use kalman::Innovation;
 pub use particle::{ParticleFilter, PfConfig, WeightedPoint};
+pub use robust_offset::{RobustOffset, RobustOffsetConfig};
 pub use tcpf::{Tcpf, TcpfConfig, TrustState};
 pub use walls::WallIndex;
 
@@ -203,10 +205,13 @@ pub enum SchemeConfig {
     Pf(PfConfig),
     /// Adaptive particle filter with walls (004 eq. 18-20).
     Apf(PfConfig),
+    /// Robust offset fusion: wipdr's own baseline, not from the papers
+    /// ([`robust_offset`]).
+    Rof(RobustOffsetConfig),
 }
 
-const SCHEME_NAMES: [&str; 11] = [
-    "wifi", "pdr", "ekf", "aekf", "akf", "rkf", "arkf", "aws", "tcpf", "pf", "apf",
+const SCHEME_NAMES: [&str; 12] = [
+    "wifi", "pdr", "ekf", "aekf", "akf", "rkf", "arkf", "aws", "tcpf", "pf", "apf", "rof",
 ];
 
 /// Names of every scheme, in the order of the issue table.
@@ -229,6 +234,7 @@ impl SchemeConfig {
             "tcpf" => Self::Tcpf(TcpfConfig::default()),
             "pf" => Self::Pf(PfConfig::default()),
             "apf" => Self::Apf(PfConfig::default()),
+            "rof" => Self::Rof(RobustOffsetConfig::default()),
             other => return Err(FusionError::UnknownScheme(other.to_string())),
         })
     }
@@ -247,6 +253,7 @@ impl SchemeConfig {
             Self::Tcpf(_) => "tcpf",
             Self::Pf(_) => "pf",
             Self::Apf(_) => "apf",
+            Self::Rof(_) => "rof",
         }
     }
 
@@ -312,6 +319,10 @@ impl SchemeConfig {
                     ctx.seed,
                     ctx.start,
                 )?)
+            }
+            Self::Rof(c) => {
+                c.validate()?;
+                Box::new(RobustOffset::new(c.clone()))
             }
         })
     }

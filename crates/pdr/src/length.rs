@@ -248,8 +248,11 @@ pub enum StepLengthConfig {
 }
 
 impl Default for StepLengthConfig {
+    /// The inverted pendulum (paper 004 eq. 6-7) with its printed scale `K = 1`: on the
+    /// ILC 2.0 walks it is as good as the calibrated models without any calibration
+    /// (`docs/results/pdr.md`), the best bet on a floor without training walks.
     fn default() -> Self {
-        StepLengthConfig::Weinberg(Weinberg::default())
+        StepLengthConfig::Pendulum(Pendulum::default())
     }
 }
 

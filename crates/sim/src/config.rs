@@ -324,6 +324,9 @@ pub struct WalkerConfig {
     pub step_period_jitter: f64,
     /// Relative per-step standard deviation of the step length.
     pub step_length_jitter: f64,
+    /// Relative per-step standard deviation of the vertical acceleration amplitude (the
+    /// vigour of a step, independent of its length).
+    pub bounce_amplitude_jitter: f64,
     /// Cadence factor of a slow leg.
     pub slow_factor: f64,
     /// Cadence factor of a fast leg.
@@ -365,6 +368,7 @@ impl Default for WalkerConfig {
             step_length_scale: [0.9, 1.1],
             step_period_jitter: 0.03,
             step_length_jitter: 0.03,
+            bounce_amplitude_jitter: 0.12,
             slow_factor: 0.85,
             fast_factor: 1.12,
             slow_fast_probability: 0.15,
@@ -407,6 +411,10 @@ pub struct ImuConfig {
     pub pitch_bounce_deg: f64,
     /// Amplitude of the lateral sway acceleration at stride frequency, m/s².
     pub lateral_sway_accel: f64,
+    /// Range of the per-walk gain between the body's bounce and the phone's vertical
+    /// acceleration `[min, max]` (the arm damps or amplifies it): step length is not read off
+    /// the acceleration amplitude exactly, and needs calibration per walker.
+    pub bounce_gain: [f64; 2],
     /// Forward acceleration amplitude as a fraction of the vertical one.
     pub forward_accel_ratio: f64,
     /// Weight of the second harmonic (heel strike) in the vertical displacement.
@@ -439,6 +447,9 @@ pub struct ImuConfig {
     pub rotation_vector_drift_deg: f64,
     /// Rotation vector: correlation time of the yaw error, seconds.
     pub rotation_vector_drift_time_s: f64,
+    /// Rotation vector: fraction of the local magnetic disturbance's heading error that its
+    /// fusion passes on (indoor anomalies pull the phone's heading).
+    pub rotation_vector_mag_coupling: f64,
     /// Rotation vector: white noise on each component's angle, degrees.
     pub rotation_vector_noise_deg: f64,
     /// Also write the uncalibrated streams (larger files).
@@ -466,6 +477,7 @@ impl Default for ImuConfig {
             yaw_sway_deg: 2.0,
             pitch_bounce_deg: 1.0,
             lateral_sway_accel: 0.5,
+            bounce_gain: [0.75, 1.25],
             forward_accel_ratio: 0.35,
             vertical_second_harmonic: 0.05,
             accel_noise: 0.12,
@@ -481,6 +493,7 @@ impl Default for ImuConfig {
             map_to_magnetic_deg: 0.0,
             rotation_vector_drift_deg: 3.0,
             rotation_vector_drift_time_s: 20.0,
+            rotation_vector_mag_coupling: 0.15,
             rotation_vector_noise_deg: 0.3,
             uncalibrated: false,
             accel_quantum: 0.001,

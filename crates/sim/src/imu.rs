@@ -15,7 +15,11 @@
 //! - magnetometer = `R^T (B_earth + B_local(p))` plus noise, `B_local` a sum of Gaussian bumps
 //!   near walls;
 //! - rotation vector = the quaternion of `R` with a slowly drifting yaw error
-//!   (Ornstein-Uhlenbeck) and small noise.
+//!   (Ornstein-Uhlenbeck), part of the compass error the local disturbances cause, and small
+//!   noise.
+//!
+//! The vertical acceleration's amplitude is scaled by a per-walk gain (the arm) and a per-step
+//! jitter, so a step-length model must be calibrated and still errs step by step.
 
 use crate::config::ImuConfig;
 use crate::floor::SimFloorPlan;
@@ -88,6 +92,8 @@ pub struct PhonePose {
     pub yaw_misalignment: f64,
     /// Gyroscope bias, rad/s, phone axes.
     pub gyro_bias: [f64; 3],
+    /// Gain between the body's bounce and the phone's vertical acceleration.
+    pub bounce_gain: f64,
 }
 
 impl PhonePose {
@@ -98,6 +104,7 @@ impl PhonePose {
             roll: (cfg.roll_std_deg * rng.normal()).to_radians(),
             yaw_misalignment: (cfg.yaw_misalignment_std_deg * rng.normal()).to_radians(),
             gyro_bias: [0; 3].map(|_: i32| cfg.gyro_bias_std * rng.normal()),
+            bounce_gain: rng.uniform(cfg.bounce_gain[0], cfg.bounce_gain[1]),
         }
     }
 }
@@ -161,7 +168,7 @@ impl ImuScene<'_> {
         }
         let c = self.cfg;
         let w = TAU * k.step_frequency;
-        let amp = 0.5 * k.bounce_m * w * w * k.ramp;
+        let amp = 0.5 * k.bounce_m * w * w * k.ramp * self.pose.bounce_gain * k.amplitude_factor;
         let u = k.phase;
         let vertical =
             amp * ((TAU * u).cos() + 4.0 * c.vertical_second_harmonic * (2.0 * TAU * u).cos());
@@ -224,13 +231,25 @@ impl ImuScene<'_> {
                 )
             });
             let (p, _) = self.path.at(self.timeline.at(t).s);
-            let b = rt * (earth + local_field(self.disturbances, p));
+            let local = local_field(self.disturbances, p);
+            let b = rt * (earth + local);
+            // Heading error a compass would make here: angle from the Earth's horizontal field
+            // to the disturbed one (clockwise positive, like headings).
+            let disturbed = earth + local;
+            let mag_error = if earth.xy().norm() > 1e-9 && disturbed.xy().norm() > 1e-9 {
+                wipdr_core::angle::diff(disturbed.x.atan2(disturbed.y), earth.x.atan2(earth.y))
+            } else {
+                0.0
+            };
             let mag = [0, 1, 2].map(|a| quantise(b[a] + c.mag_noise * noise[6 + a], c.mag_quantum));
             let rv_noise = Rotation3::from_scaled_axis(
                 Vector3::new(noise[9], noise[10], noise[11])
                     * c.rotation_vector_noise_deg.to_radians(),
             );
-            let q = UnitQuaternion::from_rotation_matrix(&(self.rotation(t, yaw_error) * rv_noise));
+            let q = UnitQuaternion::from_rotation_matrix(
+                &(self.rotation(t, yaw_error - c.rotation_vector_mag_coupling * mag_error)
+                    * rv_noise),
+            );
             let s = if q.w < 0.0 { -1.0 } else { 1.0 };
             let rv = [q.i, q.j, q.k].map(|v| quantise(s * v, c.rotation_vector_quantum));
             out.accelerometer.push(Vec3Sample {

@@ -35,7 +35,7 @@
 //! seed: the access points, the magnetic disturbances, the survey and each walk's motion, IMU,
 //! Wi-Fi and waypoints have their own stream, so walk `i` is the same whatever the number of
 //! walks, and changing one model (say the IMU noise) leaves the other streams' output alone.
-//! [`write`] writes a floor folder in the ILC layout that the real readers read, byte-identical
+//! [`write`](mod@write) writes a floor folder in the ILC layout that the real readers read, byte-identical
 //! for the same seed and configuration (`wipdr simulate`; the committed set is
 //! `fixtures/sim/F1`, see `fixtures/README.md`). Tests of other crates can skip the files:
 //! [`generate`] returns everything in memory, and [`SimWorld::walk`] makes one walk at a time.

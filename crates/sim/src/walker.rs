@@ -299,6 +299,8 @@ pub enum Motion {
         index: usize,
         /// Whether the step starts from standing (its waveform ramps up).
         first_of_bout: bool,
+        /// Per-step factor on the vertical acceleration amplitude.
+        amplitude_factor: f64,
     },
 }
 
@@ -343,6 +345,8 @@ pub struct Kinematics {
     pub bounce_m: f64,
     /// Waveform ramp factor in `[0, 1]` (rises over the first step of a bout).
     pub ramp: f64,
+    /// Per-step factor on the vertical acceleration amplitude (1 when standing).
+    pub amplitude_factor: f64,
     /// Whether walking.
     pub walking: bool,
 }
@@ -399,6 +403,8 @@ impl Timeline {
             if t + period > duration_s || s + l > path.length {
                 break;
             }
+            let amplitude_factor =
+                (1.0 + cfg.bounce_amplitude_jitter * rng.normal()).clamp(0.5, 1.5);
             let leg = params.leg_length_m.max(l);
             let bounce_m = leg - (leg * leg - l * l / 4.0).max(0.0).sqrt();
             motions.push(Motion::Step {
@@ -409,6 +415,7 @@ impl Timeline {
                 bounce_m,
                 index,
                 first_of_bout,
+                amplitude_factor,
             });
             index += 1;
             first_of_bout = false;
@@ -450,6 +457,7 @@ impl Timeline {
             step_frequency: 0.0,
             bounce_m: 0.0,
             ramp: 0.0,
+            amplitude_factor: 1.0,
             walking: false,
         };
         match self.motion_at(t.clamp(0.0, self.duration_s)) {
@@ -463,6 +471,7 @@ impl Timeline {
                 bounce_m,
                 index,
                 first_of_bout,
+                amplitude_factor,
             }) => {
                 let period = (t1 - t0).max(1e-6);
                 let u = ((t - t0) / period).clamp(0.0, 1.0);
@@ -479,6 +488,7 @@ impl Timeline {
                     step_frequency: 1.0 / period,
                     bounce_m,
                     ramp,
+                    amplitude_factor,
                     walking: true,
                 }
             }

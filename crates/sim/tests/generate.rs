@@ -281,7 +281,8 @@ fn rotation_vector_gyroscope_and_magnetometer_follow_the_true_heading() {
     for w in &s.walks {
         let imu = &w.walk.imu;
         let t = &w.truth;
-        // Rotation-vector azimuth against the true step headings.
+        // Rotation-vector azimuth against the true step headings (plus the phone's known yaw
+        // misalignment and the map-to-magnetic offset).
         let mut diffs: Vec<f64> = t
             .steps
             .iter()
@@ -290,7 +291,11 @@ fn rotation_vector_gyroscope_and_magnetometer_follow_the_true_heading() {
                     .rotation_vector
                     .partition_point(|r| r.t <= st.t)
                     .min(imu.rotation_vector.len() - 1);
-                angle::diff(azimuth(imu.rotation_vector[k].quaternion()), st.heading).abs()
+                angle::diff(
+                    azimuth(imu.rotation_vector[k].quaternion()),
+                    st.heading + t.phone.yaw_misalignment + t.map_to_magnetic,
+                )
+                .abs()
             })
             .collect();
         diffs.sort_by(f64::total_cmp);

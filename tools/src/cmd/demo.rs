@@ -7,7 +7,11 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Schemes to run, comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf"
+    )]
     schemes: Vec<String>,
     /// Write plots into this folder.
     #[arg(long)]
@@ -35,7 +39,10 @@ pub fn fixture_floors() -> Result<Vec<PathBuf>> {
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     let dirs = fixture_floors()?;
-    println!("wipdr demo: synthetic fixtures in {}", dirs[0].parent().unwrap_or(&dirs[0]).display());
+    println!(
+        "wipdr demo: synthetic fixtures in {}",
+        dirs[0].parent().unwrap_or(&dirs[0]).display()
+    );
     let floors = crate::data::load_floors(&dirs)?;
     let cfg = wipdr_eval::pipeline::EvalConfig::default();
     crate::cmd::eval::evaluate_and_report(

@@ -13,7 +13,11 @@ pub struct Args {
     #[arg(long, num_args = 1.., required = true)]
     pub data: Vec<PathBuf>,
     /// Schemes to run, comma separated (wifi, pdr, ekf, aekf, akf, rkf, arkf, aws, tcpf, pf, apf).
-    #[arg(long, value_delimiter = ',', default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf"
+    )]
     pub schemes: Vec<String>,
     /// Evaluation config (TOML; see `docs/guide.md`); defaults otherwise.
     #[arg(long)]
@@ -34,7 +38,8 @@ pub fn load_config(path: Option<&Path>) -> Result<EvalConfig> {
     match path {
         None => Ok(EvalConfig::default()),
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            let text =
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
             toml::from_str(&text).with_context(|| format!("parsing config {}", p.display()))
         }
     }
@@ -72,7 +77,9 @@ pub fn evaluate_and_report(
         unmatched,
         started.elapsed().as_secs_f64()
     );
-    println!("errors in metres at waypoints (pdr starts at the true first waypoint; every other scheme at the first Wi-Fi fix)\n");
+    println!(
+        "errors in metres at waypoints (pdr starts at the true first waypoint; every other scheme at the first Wi-Fi fix)\n"
+    );
     print!("{}", report.table());
     if let Some(path) = json {
         crate::plotting::ensure_parent(path)?;
@@ -95,7 +102,8 @@ pub fn evaluate_and_report(
         println!("\nwrote {}", path.display());
     }
     if let Some(dir) = plots {
-        let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, plot_walks)?;
+        let files =
+            eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, plot_walks)?;
         println!("wrote {} plots into {}", files, dir.display());
     }
     Ok(report)

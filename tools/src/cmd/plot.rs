@@ -51,7 +51,10 @@ fn plot_floor(a: FloorArgs) -> Result<()> {
         a.dir.display(),
         floor.walks.len()
     );
-    let is_svg = a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let is_svg = a
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
     if is_svg {
         let root = SVGBackend::new(&a.out, (w, h)).into_drawing_area();
         draw(&root, &floor, &caption)?;

@@ -75,3 +75,63 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn files(dir: &std::path::Path) -> Vec<(PathBuf, Vec<u8>)> {
+        let mut out = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    let bytes = std::fs::read(&p).unwrap();
+                    out.push((p.strip_prefix(dir).unwrap().to_path_buf(), bytes));
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    fn args(out: PathBuf, config: Option<PathBuf>) -> Args {
+        Args {
+            out,
+            seed: 9,
+            walks: Some(2),
+            duration_s: Some(30.0),
+            gross_error_rate: Some(0.1),
+            config,
+        }
+    }
+
+    #[test]
+    fn same_seed_writes_byte_identical_files() {
+        let tmp = tempfile::tempdir().unwrap();
+        let config = tmp.path().join("sim.toml");
+        std::fs::write(&config, "[survey]\nspacing_m = 8.0\ntest_points = 5\n").unwrap();
+        let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+        run(args(a.clone(), Some(config.clone()))).unwrap();
+        run(args(b.clone(), Some(config))).unwrap();
+        let (fa, fb) = (files(&a), files(&b));
+        assert!(
+            fa.iter()
+                .any(|(p, _)| p.ends_with("F1/path_data_files/sim_F1_w0001.txt.gz"))
+        );
+        assert!(fa.iter().any(|(p, _)| p.ends_with("F1/survey/train.csv")));
+        assert_eq!(fa, fb);
+    }
+
+    #[test]
+    fn a_bad_config_is_an_error_naming_the_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let config = tmp.path().join("bad.toml");
+        std::fs::write(&config, "no_such_field = 1\n").unwrap();
+        let err = run(args(tmp.path().join("out"), Some(config))).unwrap_err();
+        assert!(format!("{err:#}").contains("bad.toml"), "{err:#}");
+    }
+}

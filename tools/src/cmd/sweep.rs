@@ -65,7 +65,12 @@ fn parse_shard(s: &str) -> Result<(usize, usize)> {
 pub fn run(args: Args) -> Result<()> {
     if let Some(Sub::Merge { out, shards }) = args.merge {
         let rows = sweep::merge(&shards, &out)?;
-        println!("merged {} shard files: {} configs into {}", shards.len(), rows.len(), out.display());
+        println!(
+            "merged {} shard files: {} configs into {}",
+            shards.len(),
+            rows.len(),
+            out.display()
+        );
         return Ok(());
     }
     let spec_path = args.config.context("--config SWEEP.toml is required")?;
@@ -73,8 +78,10 @@ pub fn run(args: Args) -> Result<()> {
     if args.data.is_empty() {
         bail!("--data FLOOR_DIR... is required");
     }
-    let text = std::fs::read_to_string(&spec_path).with_context(|| format!("reading {}", spec_path.display()))?;
-    let spec: SweepSpec = toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
+    let text = std::fs::read_to_string(&spec_path)
+        .with_context(|| format!("reading {}", spec_path.display()))?;
+    let spec: SweepSpec =
+        toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
     let base = crate::cmd::eval::load_config(args.base.as_deref())?;
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
     let total = spec.expand()?.len();
@@ -94,7 +101,11 @@ pub fn run(args: Args) -> Result<()> {
         outcome.skipped,
         out.display(),
         started.elapsed().as_secs_f64(),
-        if outcome.complete { "" } else { " (incomplete: run again with --resume)" }
+        if outcome.complete {
+            ""
+        } else {
+            " (incomplete: run again with --resume)"
+        }
     );
     let mut best: Vec<&sweep::SweepRow> = outcome.rows.iter().collect();
     best.sort_by(|a, b| a.objective.total_cmp(&b.objective));
@@ -115,8 +126,12 @@ pub fn run(args: Args) -> Result<()> {
         let path = args
             .best_out
             .unwrap_or_else(|| out.with_extension("best.toml"));
-        std::fs::write(&path, toml::to_string_pretty(&cfg)?).with_context(|| format!("writing {}", path.display()))?;
-        println!("\nbest config written to {} (use with `wipdr eval --config`)", path.display());
+        std::fs::write(&path, toml::to_string_pretty(&cfg)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!(
+            "\nbest config written to {} (use with `wipdr eval --config`)",
+            path.display()
+        );
     }
     Ok(())
 }
