@@ -42,4 +42,4 @@ fingerprint:
 
 # Regenerate the committed synthetic fixtures.
 fixtures:
-    cargo run --release --bin wipdr -- simulate --out fixtures/sim --seed 7
+    cargo run --release --bin wipdr -- simulate --out fixtures/sim --seed 2026 --walks 10 --duration-s 90 --gross-error-rate 0.05

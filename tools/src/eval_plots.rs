@@ -116,11 +116,30 @@ fn trajectories(
     tracks: &[(String, wipdr_eval::scoring::Track)],
 ) -> Result<()> {
     let plan = &floor.data.plan;
-    let (w, h) = plotting::floor_canvas_size(plan.width, plan.height, 1400);
+    // Zoom to the walk: its waypoints and fixes, with a margin, inside the floor.
+    let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+    let pts = walk
+        .waypoints
+        .iter()
+        .map(|w| w.position)
+        .chain(walk.observations.iter().map(|o| o.estimate));
+    for p in pts.filter(|p| p.x.is_finite() && p.y.is_finite()) {
+        lo = (lo.0.min(p.x), lo.1.min(p.y));
+        hi = (hi.0.max(p.x), hi.1.max(p.y));
+    }
+    let margin = 10.0;
+    let (x0, x1) = ((lo.0 - margin).max(0.0), (hi.0 + margin).min(plan.width));
+    let (y0, y1) = ((lo.1 - margin).max(0.0), (hi.1 + margin).min(plan.height));
+    let (x0, x1, y0, y1) = if x1 > x0 && y1 > y0 {
+        (x0, x1, y0, y1)
+    } else {
+        (0.0, plan.width, 0.0, plan.height)
+    };
+    let (w, h) = plotting::floor_canvas_size(x1 - x0, y1 - y0, 1400);
     let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let caption = format!("{} {} — schemes against truth", floor.label, walk.walk);
-    let mut chart = plotting::floor_chart(&root, plan, &caption)?;
+    let mut chart = plotting::floor_chart_in(&root, (x0, x1), (y0, y1), &caption)?;
     plotting::draw_floor_plan(&mut chart, plan)?;
     let truth: Vec<(f64, f64)> = walk
         .waypoints

@@ -28,9 +28,9 @@ pub fn init_fonts() {
     });
 }
 
-/// A qualitative palette (Tableau 10), cycled.
+/// A qualitative palette (Tableau 10 plus two), cycled.
 pub fn palette(i: usize) -> RGBColor {
-    const P: [RGBColor; 10] = [
+    const P: [RGBColor; 12] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
         RGBColor(44, 160, 44),
@@ -41,6 +41,8 @@ pub fn palette(i: usize) -> RGBColor {
         RGBColor(127, 127, 127),
         RGBColor(188, 189, 34),
         RGBColor(23, 190, 207),
+        RGBColor(128, 0, 0),
+        RGBColor(255, 215, 0),
     ];
     P[i % P.len()]
 }
@@ -73,13 +75,26 @@ pub fn floor_chart<'a, DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
+    floor_chart_in(root, (0.0, plan.width), (0.0, plan.height), caption)
+}
+
+/// Like [`floor_chart`] over a window `x` x `y` of the floor (metres), e.g. one walk's extent.
+pub fn floor_chart_in<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, plotters::coord::Shift>,
+    x: (f64, f64),
+    y: (f64, f64),
+    caption: &str,
+) -> Result<FloorChart<'a, DB>>
+where
+    DB::ErrorType: 'static,
+{
     init_fonts();
     let mut chart = ChartBuilder::on(root)
         .caption(caption, (FONT_FAMILY, 22))
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(40)
-        .build_cartesian_2d(0.0..plan.width, 0.0..plan.height)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
         .map_err(|e| anyhow::anyhow!("chart: {e}"))?;
     chart
         .configure_mesh()

@@ -18,6 +18,7 @@
 //! | `tcpf` | Trust Chain Positioning Fusion | 002 §4.3, eq. 15-19 |
 //! | `pf` | particle filter, DR state, Wi-Fi-minus-DR observation | 004 eq. 12-17 |
 //! | `apf` | `pf` + floor-plan walls + adaptive weight | 004 eq. 18-20, §4.3.3 |
+//! | `rof` | robust offset: PDR placed by the geometric median of recent Wi-Fi offsets | wipdr's own baseline, not from the papers |
 //!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free

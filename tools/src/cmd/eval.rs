@@ -12,11 +12,11 @@ pub struct Args {
     /// Floor folders (ILC layout: `path_data_files/`, `floor_info.json`, `geojson_map.json`).
     #[arg(long, num_args = 1.., required = true)]
     pub data: Vec<PathBuf>,
-    /// Schemes to run, comma separated (wifi, pdr, ekf, aekf, akf, rkf, arkf, aws, tcpf, pf, apf).
+    /// Schemes to run, comma separated (wifi, pdr, ekf, aekf, akf, rkf, arkf, aws, tcpf, pf, apf, rof).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf"
+        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof"
     )]
     pub schemes: Vec<String>,
     /// Evaluation config (TOML; see `docs/guide.md`); defaults otherwise.
