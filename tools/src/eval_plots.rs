@@ -96,17 +96,7 @@ fn error_cdf(path: &Path, report: &EvalReport, schemes: &[String]) -> Result<()>
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT_FAMILY, 14))
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
-    root.present()
-        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
-    Ok(())
+    finish(chart, &root, path, SeriesLabelPosition::LowerRight)
 }
 
 fn trajectories(
@@ -180,17 +170,7 @@ fn trajectories(
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FONT_FAMILY, 14))
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
-    root.present()
-        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
-    Ok(())
+    finish(chart, &root, path, SeriesLabelPosition::UpperRight)
 }
 
 fn error_over_time(
@@ -257,9 +237,22 @@ fn error_over_time(
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
             });
     }
+    finish(chart, &root, path, SeriesLabelPosition::UpperLeft)
+}
+
+/// Draws the legend and writes the picture.
+fn finish<'a, DB: DrawingBackend + 'a>(
+    mut chart: plotting::FloorChart<'a, DB>,
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    path: &Path,
+    position: SeriesLabelPosition,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(position)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font((FONT_FAMILY, 14))

@@ -47,7 +47,7 @@ pub fn palette(i: usize) -> RGBColor {
     P[i % P.len()]
 }
 
-/// A chart in the floor's metre frame (x east, y north: north at the top).
+/// A chart with metre (or any f64) axes: floors (x east, y north: north at the top), CDFs.
 pub type FloorChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Pixel size for a floor of `width` x `height` metres with the longer side `long_px`.
