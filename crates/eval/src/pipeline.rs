@@ -19,8 +19,9 @@ use std::sync::Arc;
 use thiserror::Error;
 use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
-use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, QueryFilter};
+use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
 use wipdr_fusion::{BuildContext, SchemeConfig, WallIndex};
 use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
@@ -74,6 +75,10 @@ pub struct EvalConfig {
     pub matcher: KnnConfig,
     /// Online filtering of test scans.
     pub query: QueryFilter,
+    /// Use the multi-scan MED matcher (paper 004 eq. 11, Euclidean form) on the same radio
+    /// map instead of `matcher`, fed with the PDR displacement between scans. `None`
+    /// (default): single-scan `matcher`.
+    pub med: Option<MedConfig>,
     /// The PDR pipeline (before calibration).
     pub pdr: PdrConfig,
     /// Whether step length (and heading offset) are fitted on each fold's training walks.
@@ -98,6 +103,7 @@ impl Default for EvalConfig {
                 max_age_ms: WalkMapConfig::default().max_entry_age_ms,
                 ..QueryFilter::default()
             },
+            med: None,
             pdr: PdrConfig::default(),
             calibrate_pdr: true,
             calibration: CalibrationConfig::default(),
@@ -124,6 +130,7 @@ impl EvalConfig {
     pub fn preparation_key(&self) -> String {
         serde_json::json!({
             "radio_map": self.radio_map, "matcher": self.matcher, "query": self.query,
+            "med": self.med,
             "pdr": self.pdr, "calibrate_pdr": self.calibrate_pdr,
             "calibration": self.calibration,
         })
@@ -252,6 +259,11 @@ fn prepare_fold(
         build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
     tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
     let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
+    let med = cfg
+        .med
+        .map(|m| MedMatcher::new(matcher.shared_map().clone(), m))
+        .transpose()
+        .map_err(fp_err)?;
     let pdr_cfg = if cfg.calibrate_pdr {
         calibrate_pdr(&cfg.pdr, &cfg.calibration, &training)
     } else {
@@ -270,8 +282,27 @@ fn prepare_fold(
             let steps = steps_of(&pdr_cfg, walk);
             let mut observations = Vec::with_capacity(walk.wifi.len());
             let mut unmatched = 0;
+            let mut med = med.clone();
+            if let Some(m) = med.as_mut() {
+                m.reset();
+            }
+            let mut prev_t = TimestampMs::MIN;
             for scan in &walk.wifi {
-                match matcher.locate_scan(scan, &cfg.query) {
+                let located = match med.as_mut() {
+                    None => matcher.locate_scan(scan, &cfg.query),
+                    Some(m) => {
+                        // PDR displacement since the previous scan (causal: steps up to now).
+                        let moved = steps
+                            .iter()
+                            .filter(|s| s.t > prev_t && s.t <= scan.t)
+                            .map(|s| wipdr_core::angle::step_displacement(s.length, s.heading))
+                            .fold(wipdr_core::Vector2::zeros(), |a, b| a + b);
+                        Query::from_scan(scan, m.map_ref(), &cfg.query)
+                            .and_then(|q| m.locate_next(&q, moved))
+                    }
+                };
+                prev_t = scan.t;
+                match located {
                     Ok(o) => observations.push(o),
                     Err(e) => {
                         unmatched += 1;

@@ -216,3 +216,47 @@ fn interrupted_and_resumed_sweep_equals_uninterrupted() {
         .fold(f64::INFINITY, f64::min);
     assert!(best.is_finite());
 }
+
+/// MED over a window of one scan is single-scan WKNN on the same map (paper 004 eq. 11 with
+/// w = 1), so wiring the PDR displacements in cannot change a one-scan result.
+#[test]
+fn med_with_a_one_scan_window_equals_single_scan_wknn() {
+    let floor = fixture_floor();
+    let knn = EvalConfig::default();
+    let med = EvalConfig {
+        med: Some(wipdr_fingerprint::med::MedConfig {
+            window: 1,
+            ..Default::default()
+        }),
+        ..EvalConfig::default()
+    };
+    let a = pipeline::prepare(std::slice::from_ref(&floor), &knn).unwrap();
+    let b = pipeline::prepare(std::slice::from_ref(&floor), &med).unwrap();
+    let mut compared = 0;
+    for (wa, wb) in a.iter().zip(&b) {
+        assert_eq!(wa.observations.len(), wb.observations.len());
+        for (oa, ob) in wa.observations.iter().zip(&wb.observations) {
+            assert!(
+                (oa.estimate - ob.estimate).norm() < 1e-3,
+                "{:?} vs {:?}",
+                oa.estimate,
+                ob.estimate
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared > 100);
+    // A longer window uses the history and changes some fixes.
+    let med2 = EvalConfig {
+        med: Some(wipdr_fingerprint::med::MedConfig::default()),
+        ..EvalConfig::default()
+    };
+    let c = pipeline::prepare(std::slice::from_ref(&floor), &med2).unwrap();
+    let changed = a
+        .iter()
+        .zip(&c)
+        .flat_map(|(wa, wc)| wa.observations.iter().zip(&wc.observations))
+        .filter(|(oa, oc)| (oa.estimate - oc.estimate).norm() > 1e-3)
+        .count();
+    assert!(changed > 0);
+}
