@@ -1,5 +1,7 @@
 //! Fusion benchmarks: one EKF step + Wi-Fi update (goal: well under 1 µs), and `apf` with
-//! 1,000 particles and walls per step (synthetic ring-corridor floor plan).
+//! 1,000 particles and walls per step, on a synthetic ring-corridor floor plan and, when
+//! `../shared/data` exists, on the real floor plan of ILC site1/F1 (1,000+ wall segments)
+//! with a real walk's PDR steps and Wi-Fi fixes (throughput in steps per second).
 //!
 //! ```text
 //! cargo bench -p wipdr-benches --bench fusion
@@ -85,5 +87,98 @@ fn apf_per_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, ekf_step_and_update, apf_per_step);
+/// One real walk of site1/F1 as fusion inputs: PDR steps (default config) and WKNN fixes on a
+/// radio map of the floor's other walks. `None` (with a printed reason) without the data.
+fn real_walk() -> Option<(
+    wipdr_core::FloorPlan,
+    Vec<wipdr_core::StepEvent>,
+    Vec<wipdr_core::WifiObservation>,
+)> {
+    use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, QueryFilter, walk_map};
+    let dir = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/ilc20/site1/F1"
+    );
+    if !std::path::Path::new(dir).is_dir() {
+        eprintln!("apf_real skipped: {dir} not found");
+        return None;
+    }
+    let floor = wipdr_io::floor::read_floor_dir(dir, &Default::default()).ok()?;
+    // The longest walk is the test walk; the others make the radio map.
+    let longest = (0..floor.walks.len()).max_by(|&a, &b| {
+        floor.walks[a]
+            .walk
+            .duration_s()
+            .total_cmp(&floor.walks[b].walk.duration_s())
+    })?;
+    let test = &floor.walks[longest];
+    let train = floor
+        .walks
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != longest)
+        .map(|(_, w)| &w.walk);
+    let cfg = walk_map::WalkMapConfig::default();
+    let (map, _) = walk_map::build_from_walks(train, &cfg).ok()?;
+    let matcher = KnnMatcher::new(map, KnnConfig::default()).ok()?;
+    let query = QueryFilter {
+        max_age_ms: cfg.max_entry_age_ms,
+        ..QueryFilter::default()
+    };
+    let steps = wipdr_pdr::Pdr::run(wipdr_pdr::PdrConfig::default(), &test.walk);
+    let obs = test
+        .walk
+        .wifi
+        .iter()
+        .filter_map(|s| matcher.locate_scan(s, &query).ok())
+        .collect();
+    Some((floor.plan, steps, obs))
+}
+
+fn apf_on_a_real_floor(c: &mut Criterion) {
+    let Some((plan, steps, obs)) = real_walk() else {
+        return;
+    };
+    let ctx = BuildContext::with_floor_plan(&plan);
+    let config = SchemeConfig::Apf(PfConfig {
+        n_particles: 1000,
+        ..PfConfig::default()
+    });
+    eprintln!(
+        "apf_real: {} steps, {} Wi-Fi fixes, {} walls",
+        steps.len(),
+        obs.len(),
+        plan.walls.len()
+    );
+    let mut group = c.benchmark_group("apf_real");
+    group.throughput(criterion::Throughput::Elements(steps.len() as u64));
+    group.sample_size(10);
+    group.bench_function(
+        BenchmarkId::new("whole_walk_site1F1", plan.walls.len()),
+        |b| {
+            b.iter(|| {
+                let mut fuser = config.build(&ctx).unwrap();
+                let (mut i, mut j) = (0, 0);
+                while i < steps.len() || j < obs.len() {
+                    if j >= obs.len() || (i < steps.len() && steps[i].t <= obs[j].t) {
+                        fuser.on_step(&steps[i]);
+                        i += 1;
+                    } else {
+                        fuser.on_wifi(&obs[j]);
+                        j += 1;
+                    }
+                }
+                black_box(fuser.estimate())
+            })
+        },
+    );
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    ekf_step_and_update,
+    apf_per_step,
+    apf_on_a_real_floor
+);
 criterion_main!(benches);
