@@ -125,15 +125,15 @@ impl Fuser for AwsFuser {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.position.map(|position| Estimate {
-            t: self.t,
-            position,
-            covariance: None,
-            diagnostics: Diagnostics {
-                wifi_flagged: self.last_flagged,
-                skipped_inputs: self.guard.skipped,
-                ..Diagnostics::default()
-            },
+        self.position.map(|position| {
+            Estimate::point(
+                self.t,
+                position,
+                Diagnostics {
+                    wifi_flagged: self.last_flagged,
+                    ..self.guard.diagnostics()
+                },
+            )
         })
     }
 }

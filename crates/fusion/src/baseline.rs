@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, StepEvent, TimestampMs, WifiObservation, angle};
 
-use crate::{Diagnostics, Estimate, Fuser, InputGuard};
+use crate::{Estimate, Fuser, InputGuard};
 
 /// Config of `wifi` (nothing to tune; a struct so that the TOML shape is uniform).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -53,15 +53,8 @@ impl Fuser for WifiOnly {
         }
     }
     fn estimate(&self) -> Option<Estimate> {
-        self.last.map(|(t, position)| Estimate {
-            t,
-            position,
-            covariance: None,
-            diagnostics: Diagnostics {
-                skipped_inputs: self.guard.skipped,
-                ..Diagnostics::default()
-            },
-        })
+        self.last
+            .map(|(t, position)| Estimate::point(t, position, self.guard.diagnostics()))
     }
 }
 
@@ -106,15 +99,8 @@ impl Fuser for PdrOnly {
         }
     }
     fn estimate(&self) -> Option<Estimate> {
-        self.position.map(|position| Estimate {
-            t: self.t,
-            position,
-            covariance: None,
-            diagnostics: Diagnostics {
-                skipped_inputs: self.guard.skipped,
-                ..Diagnostics::default()
-            },
-        })
+        self.position
+            .map(|position| Estimate::point(self.t, position, self.guard.diagnostics()))
     }
 }
 

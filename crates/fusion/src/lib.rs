@@ -137,6 +137,18 @@ pub struct Estimate {
     pub diagnostics: Diagnostics,
 }
 
+impl Estimate {
+    /// An estimate without a covariance (schemes that do not carry one).
+    pub fn point(t: TimestampMs, position: Point2, diagnostics: Diagnostics) -> Self {
+        Self {
+            t,
+            position,
+            covariance: None,
+            diagnostics,
+        }
+    }
+}
+
 /// A fusion scheme: steps and Wi-Fi observations in, in time order; the current estimate out.
 ///
 /// Inputs that are non-finite or older than the latest input are skipped, logged with
@@ -338,6 +350,14 @@ pub(crate) struct InputGuard {
 }
 
 impl InputGuard {
+    /// Diagnostics carrying the count of skipped inputs (the rest default).
+    pub(crate) fn diagnostics(&self) -> Diagnostics {
+        Diagnostics {
+            skipped_inputs: self.skipped,
+            ..Diagnostics::default()
+        }
+    }
+
     pub(crate) fn accept_step(&mut self, step: &StepEvent) -> bool {
         let ok = step.length.is_finite() && step.length >= 0.0 && step.heading.is_finite();
         if !ok {

@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
-use crate::{Diagnostics, Estimate, Fuser, FusionError, InputGuard};
+use crate::{Estimate, Fuser, FusionError, InputGuard};
 
 /// Config of `rof`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -180,15 +180,8 @@ impl Fuser for RobustOffset {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.offset.map(|o| Estimate {
-            t: self.t,
-            position: Point2::from(self.pdr + o),
-            covariance: None,
-            diagnostics: Diagnostics {
-                skipped_inputs: self.guard.skipped,
-                ..Diagnostics::default()
-            },
-        })
+        self.offset
+            .map(|o| Estimate::point(self.t, Point2::from(self.pdr + o), self.guard.diagnostics()))
     }
 }
 

@@ -289,17 +289,17 @@ impl Fuser for Tcpf {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.position.map(|position| Estimate {
-            t: self.t,
-            position,
-            covariance: None,
-            diagnostics: Diagnostics {
-                trust_state: Some(self.state),
-                tc_lambda: Some(self.lambda),
-                wifi_flagged: self.last_trusted.map(|t| !t),
-                skipped_inputs: self.guard.skipped,
-                ..Diagnostics::default()
-            },
+        self.position.map(|position| {
+            Estimate::point(
+                self.t,
+                position,
+                Diagnostics {
+                    trust_state: Some(self.state),
+                    tc_lambda: Some(self.lambda),
+                    wifi_flagged: self.last_trusted.map(|t| !t),
+                    ..self.guard.diagnostics()
+                },
+            )
         })
     }
 }
