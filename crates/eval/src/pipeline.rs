@@ -21,6 +21,7 @@ use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
+use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
 use wipdr_fusion::{BuildContext, SchemeConfig, WallIndex};
 use wipdr_io::floor::FloorData;
@@ -98,7 +99,12 @@ impl Default for EvalConfig {
     fn default() -> Self {
         Self {
             radio_map: WalkMapConfig::default(),
-            matcher: KnnConfig::default(),
+            // The shared-AP distance (findings.md) is the tuned default for recorded walks;
+            // `docs/configs/reference.toml` restores the reference's Euclidean WKNN.
+            matcher: KnnConfig {
+                metric: Metric::SharedAp(SharedAp::default()),
+                ..KnnConfig::default()
+            },
             query: QueryFilter {
                 max_age_ms: WalkMapConfig::default().max_entry_age_ms,
                 ..QueryFilter::default()
