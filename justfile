@@ -43,3 +43,9 @@ fingerprint:
 # Regenerate the committed synthetic fixtures.
 fixtures:
     cargo run --release --bin wipdr -- simulate --out fixtures/sim --seed 2026 --walks 10 --duration-s 90 --gross-error-rate 0.05
+
+# The papers' tables on the five real floors (docs/results/papers.md): `just papers tables`,
+# `just papers tune` (the tuning sweeps) or `just papers all`.
+papers mode="tables":
+    cargo build --release -p wipdr
+    bash docs/results/papers.sh {{mode}}

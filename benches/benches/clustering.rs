@@ -104,7 +104,13 @@ fn bench_matchers_uji1(c: &mut Criterion) {
         "wknn_brute_force".into(),
         Box::new(KnnMatcher::new(map.clone(), KnnConfig::default()).unwrap()),
     )];
-    for spec in ["apc", "apc:sim=signal,clusters=3", "apindex", "med"] {
+    for spec in [
+        "apc",
+        "apc:sim=signal,clusters=3",
+        "apindex",
+        "apindex:top=4,threshold=0",
+        "med",
+    ] {
         let m = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())
             .unwrap()
             .unwrap();

@@ -96,6 +96,13 @@ fn configs() -> Vec<(&'static str, KnnConfig)> {
             },
         ),
         (
+            "wknn-shared-ap",
+            KnnConfig {
+                metric: Metric::parse("shared_ap").expect("known"),
+                ..KnnConfig::wknn(5, 1.0)
+            },
+        ),
+        (
             "wknn-neyman-dense",
             KnnConfig {
                 metric: Metric::Neyman,

@@ -1,12 +1,33 @@
-//! Plots of an evaluation: trajectories against truth on the floor plan, the error CDF per
-//! scheme, and the error against time for a walk.
+//! Plots of an evaluation: trajectories against truth over the floor image (or the vector plan
+//! when a floor has no image), the error CDF per scheme, and the error against time for a walk.
 
-use crate::plotting::{self, FONT_FAMILY};
+use crate::plotting::{self, FONT_FAMILY, FloorImage};
 use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 use std::path::Path;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput, PreparedWalk};
 use wipdr_eval::report::EvalReport;
+
+/// How the trajectory plots are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlotOptions {
+    /// How many walks per floor get a trajectory and an error-against-time plot.
+    pub walks_per_floor: usize,
+    /// Draw the floor image (`floor_image.png`) as the background when the floor has one.
+    pub floor_image: bool,
+    /// Lay the vector plan's walls over the image (thin, half transparent).
+    pub walls_over_image: bool,
+}
+
+impl Default for PlotOptions {
+    fn default() -> Self {
+        Self {
+            walks_per_floor: 2,
+            floor_image: true,
+            walls_over_image: true,
+        }
+    }
+}
 
 /// Writes every plot; returns how many files were written.
 pub fn write_all(
@@ -18,16 +39,42 @@ pub fn write_all(
     report: &EvalReport,
     walks_per_floor: usize,
 ) -> Result<usize> {
+    let options = PlotOptions {
+        walks_per_floor,
+        ..PlotOptions::default()
+    };
+    write_all_with(dir, floors, prepared, cfg, schemes, report, &options)
+}
+
+/// [`write_all`] with every drawing option.
+pub fn write_all_with(
+    dir: &Path,
+    floors: &[FloorInput],
+    prepared: &[PreparedWalk],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    report: &EvalReport,
+    options: &PlotOptions,
+) -> Result<usize> {
     std::fs::create_dir_all(dir)?;
     let mut n = 0;
     error_cdf(&dir.join("error-cdf.png"), report, schemes)?;
     n += 1;
     for (fi, floor) in floors.iter().enumerate() {
-        for pw in prepared
+        let walks: Vec<&PreparedWalk> = prepared
             .iter()
             .filter(|p| p.floor_index == fi)
-            .take(walks_per_floor)
-        {
+            .take(options.walks_per_floor)
+            .collect();
+        if walks.is_empty() {
+            continue;
+        }
+        let background = if options.floor_image {
+            floor_image_of(floor)
+        } else {
+            None
+        };
+        for pw in walks {
             let tracks = pipeline::tracks_of(floor, pw, cfg, schemes)?;
             let stem = format!("{}-{}", floor.label.replace('/', "-"), pw.walk);
             trajectories(
@@ -35,12 +82,37 @@ pub fn write_all(
                 floor,
                 pw,
                 &tracks,
+                background.as_ref(),
+                options.walls_over_image,
             )?;
             error_over_time(&dir.join(format!("{stem}-error.png")), pw, report, schemes)?;
             n += 2;
         }
     }
     Ok(n)
+}
+
+/// The floor's image, or `None` (with a warning when it exists but cannot be used): the
+/// plots then fall back to the vector plan.
+fn floor_image_of(floor: &FloorInput) -> Option<FloorImage> {
+    let data = &floor.data;
+    match FloorImage::load(&data.dir, data.width, data.height) {
+        Ok(found) => {
+            match &found {
+                Some(image) => {
+                    tracing::debug!(floor = %floor.label, size_px = ?image.size_px(), "floor image")
+                }
+                None => {
+                    tracing::info!(floor = %floor.label, "no floor image: drawing the vector plan")
+                }
+            }
+            found
+        }
+        Err(e) => {
+            tracing::warn!(floor = %floor.label, "floor image unusable ({e:#}): drawing the vector plan");
+            None
+        }
+    }
 }
 
 fn error_cdf(path: &Path, report: &EvalReport, schemes: &[String]) -> Result<()> {
@@ -104,6 +176,8 @@ fn trajectories(
     floor: &FloorInput,
     walk: &PreparedWalk,
     tracks: &[(String, wipdr_eval::scoring::Track)],
+    background: Option<&FloorImage>,
+    walls_over_image: bool,
 ) -> Result<()> {
     let plan = &floor.data.plan;
     // Zoom to the walk: its waypoints and fixes, with a margin, inside the floor.
@@ -118,8 +192,8 @@ fn trajectories(
         hi = (hi.0.max(p.x), hi.1.max(p.y));
     }
     let margin = 10.0;
-    let (x0, x1) = ((lo.0 - margin).max(0.0), (hi.0 + margin).min(plan.width));
-    let (y0, y1) = ((lo.1 - margin).max(0.0), (hi.1 + margin).min(plan.height));
+    let (x0, x1) = window_of(lo.0 - margin, hi.0 + margin, plan.width);
+    let (y0, y1) = window_of(lo.1 - margin, hi.1 + margin, plan.height);
     let (x0, x1, y0, y1) = if x1 > x0 && y1 > y0 {
         (x0, x1, y0, y1)
     } else {
@@ -130,7 +204,15 @@ fn trajectories(
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let caption = format!("{} {} — schemes against truth", floor.label, walk.walk);
     let mut chart = plotting::floor_chart_in(&root, (x0, x1), (y0, y1), &caption)?;
-    plotting::draw_floor_plan(&mut chart, plan)?;
+    match background {
+        Some(image) => {
+            plotting::draw_floor_image(&mut chart, image, (x0, x1), (y0, y1))?;
+            if walls_over_image {
+                plotting::draw_walls(&mut chart, plan, RGBColor(60, 60, 60).mix(0.45))?;
+            }
+        }
+        None => plotting::draw_floor_plan(&mut chart, plan)?,
+    }
     let truth: Vec<(f64, f64)> = walk
         .waypoints
         .iter()
@@ -171,6 +253,32 @@ fn trajectories(
             });
     }
     finish(chart, &root, path, SeriesLabelPosition::UpperRight)
+}
+
+/// Shortest side of a trajectory window, metres: a short walk still shows its surroundings
+/// (and the floor image is not blown up past recognition).
+const MIN_WINDOW_M: f64 = 50.0;
+
+/// The window `[lo, hi]` widened about its centre to [`MIN_WINDOW_M`] and kept inside
+/// `[0, extent]` (as far as the floor is large enough).
+fn window_of(lo: f64, hi: f64, extent: f64) -> (f64, f64) {
+    let want = MIN_WINDOW_M.min(extent);
+    let (mut lo, mut hi) = (lo, hi);
+    if hi - lo < want {
+        let centre = 0.5 * (lo + hi);
+        lo = centre - 0.5 * want;
+        hi = centre + 0.5 * want;
+    }
+    // Shift back inside the floor before clipping, so the window keeps its size.
+    if lo < 0.0 {
+        hi -= lo;
+        lo = 0.0;
+    }
+    if hi > extent {
+        lo -= hi - extent;
+        hi = extent;
+    }
+    (lo.max(0.0), hi.min(extent))
 }
 
 fn error_over_time(
@@ -261,4 +369,22 @@ where
     root.present()
         .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_keep_a_minimum_size_inside_the_floor() {
+        // A short walk in the middle: widened about its centre.
+        assert_eq!(window_of(90.0, 110.0, 200.0), (75.0, 125.0));
+        // Near an edge: shifted inside, same size.
+        assert_eq!(window_of(-10.0, 10.0, 200.0), (0.0, 50.0));
+        assert_eq!(window_of(190.0, 210.0, 200.0), (150.0, 200.0));
+        // A long walk keeps its extent, clipped to the floor.
+        assert_eq!(window_of(-5.0, 120.0, 100.0), (0.0, 100.0));
+        // A floor smaller than the minimum: the whole floor.
+        assert_eq!(window_of(10.0, 12.0, 30.0), (0.0, 30.0));
+    }
 }

@@ -19,11 +19,11 @@ use std::sync::Arc;
 use thiserror::Error;
 use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
-use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
-use wipdr_fusion::{BuildContext, SchemeConfig, WallIndex};
+use wipdr_fusion::{BuildContext, MapMatched, SchemeConfig, WalkableGrid, WallIndex};
 use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
 use wipdr_pdr::{Pdr, PdrConfig};
@@ -80,6 +80,19 @@ pub struct EvalConfig {
     /// map instead of `matcher`, fed with the PDR displacement between scans. `None`
     /// (default): single-scan `matcher`.
     pub med: Option<MedConfig>,
+    /// Use an indexed matcher instead of searching `matcher` by brute force: `apc` (cluster
+    /// search, paper 001 §2.3) or `apindex` (AP index, paper 002 §3.2), optionally with
+    /// settings `NAME:key=value,...` (`wipdr_fingerprint::cluster_search::apply_spec`, e.g.
+    /// `"apc:sim=signal,clusters=3"`, `"apindex:moving=-80"`). Built per fold on the fold's
+    /// radio map; its inner WKNN takes `matcher`'s k, weighting, distance and representation
+    /// (the spec's `k`, `metric`, `rep` override them). `apindex` is given the walker's motion
+    /// from the PDR steps (`wipdr_fingerprint::ap_index::motion_at`: moving when a step came
+    /// within `stationary_after_ms`, default 2 s, before the scan). `med` takes precedence.
+    /// `None` (default): brute force.
+    pub matcher_spec: Option<String>,
+    /// Further settings of the indexed matchers (`[clustering.apindex]`, `[clustering.apc]`:
+    /// thresholds, clustering), under `matcher_spec`'s keys.
+    pub clustering: wipdr_fingerprint::cluster_search::ClusteringMatchersConfig,
     /// The PDR pipeline (before calibration).
     pub pdr: PdrConfig,
     /// Whether step length (and heading offset) are fitted on each fold's training walks.
@@ -93,6 +106,9 @@ pub struct EvalConfig {
     pub seed: u64,
     /// Scheme configs by name; a scheme not listed runs with its defaults.
     pub schemes: BTreeMap<String, SchemeConfig>,
+    /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
+    /// §4; [`MapMatched`]): causal, from the plan alone.
+    pub map_matching: bool,
 }
 
 impl Default for EvalConfig {
@@ -110,12 +126,15 @@ impl Default for EvalConfig {
                 ..QueryFilter::default()
             },
             med: None,
+            matcher_spec: None,
+            clustering: Default::default(),
             pdr: PdrConfig::default(),
             calibrate_pdr: true,
             calibration: CalibrationConfig::default(),
             score_from_first_scan: true,
             seed: 1,
             schemes: BTreeMap::new(),
+            map_matching: false,
         }
     }
 }
@@ -136,7 +155,7 @@ impl EvalConfig {
     pub fn preparation_key(&self) -> String {
         serde_json::json!({
             "radio_map": self.radio_map, "matcher": self.matcher, "query": self.query,
-            "med": self.med,
+            "med": self.med, "matcher_spec": self.matcher_spec, "clustering": self.clustering,
             "pdr": self.pdr, "calibrate_pdr": self.calibrate_pdr,
             "calibration": self.calibration,
         })
@@ -174,6 +193,9 @@ pub struct PreparedWalk {
     pub first_scan_t: Option<TimestampMs>,
     /// Ground truth, for scoring only.
     pub waypoints: Vec<Waypoint>,
+    /// Positions of the fold's radio-map reference points (training data: where the map
+    /// has fingerprints), shared by the fold's walks; coverage-aware schemes use it.
+    pub coverage: Arc<Vec<Point2>>,
 }
 
 impl PreparedWalk {
@@ -264,7 +286,30 @@ fn prepare_fold(
     let (map, report) =
         build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
     tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
+    let coverage: Arc<Vec<Point2>> = Arc::new(map.points.iter().map(|p| p.position).collect());
     let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
+    // The indexed matcher of `matcher_spec`, and its stationary window (ms).
+    let indexed: Option<(Box<dyn Matcher>, i64)> = match &cfg.matcher_spec {
+        None => None,
+        Some(spec) => {
+            use wipdr_fingerprint::cluster_search::{apply_spec, build_matcher};
+            let mut c = cfg.clustering.clone();
+            let m = &cfg.matcher;
+            (c.apc.k, c.apc.weighting, c.apc.metric, c.apc.representation) =
+                (m.k, m.weighting, m.metric, m.representation);
+            (c.apindex.k, c.apindex.weighting, c.apindex.metric) = (m.k, m.weighting, m.metric);
+            c.apindex.representation = m.representation;
+            apply_spec(spec, &mut c).map_err(fp_err)?;
+            let built = build_matcher(spec, matcher.shared_map().clone(), &c)
+                .map_err(fp_err)?
+                .ok_or_else(|| {
+                    fp_err(wipdr_fingerprint::FingerprintError::InvalidConfig(format!(
+                        "matcher_spec {spec:?}: expected apc, apindex or med"
+                    )))
+                })?;
+            Some((built, c.apindex.stationary_after_ms))
+        }
+    };
     let med = cfg
         .med
         .map(|m| MedMatcher::new(matcher.shared_map().clone(), m))
@@ -282,20 +327,33 @@ fn prepare_fold(
         .filter(|(_, (_, f))| **f == fold)
         .map(|(i, (w, _))| (i, &w.walk))
         .collect();
-    Ok(tests
+    let timed: Vec<(PreparedWalk, std::time::Duration)> = tests
         .par_iter()
         .map(|&(_, walk)| {
             let steps = steps_of(&pdr_cfg, walk);
             let mut observations = Vec::with_capacity(walk.wifi.len());
             let mut unmatched = 0;
+            let mut locate_time = std::time::Duration::ZERO;
             let mut med = med.clone();
             if let Some(m) = med.as_mut() {
                 m.reset();
             }
             let mut prev_t = TimestampMs::MIN;
             for scan in &walk.wifi {
+                let started = std::time::Instant::now();
                 let located = match med.as_mut() {
-                    None => matcher.locate_scan(scan, &cfg.query),
+                    None => match &indexed {
+                        None => matcher.locate_scan(scan, &cfg.query),
+                        Some((m, still_after)) => {
+                            // Causal: only steps detected up to the scan.
+                            let motion = wipdr_fingerprint::ap_index::motion_at(
+                                &steps,
+                                scan.t,
+                                *still_after,
+                            );
+                            m.locate_scan_with_motion(scan, &cfg.query, &motion)
+                        }
+                    },
                     Some(m) => {
                         // PDR displacement since the previous scan (causal: steps up to now).
                         let moved = steps
@@ -308,6 +366,7 @@ fn prepare_fold(
                     }
                 };
                 prev_t = scan.t;
+                locate_time += started.elapsed();
                 match located {
                     Ok(o) => observations.push(o),
                     Err(e) => {
@@ -316,7 +375,7 @@ fn prepare_fold(
                     }
                 }
             }
-            PreparedWalk {
+            let prepared = PreparedWalk {
                 floor: floor.label.clone(),
                 floor_index,
                 walk: walk.meta.id.clone(),
@@ -326,9 +385,30 @@ fn prepare_fold(
                 unmatched_scans: unmatched,
                 first_scan_t: walk.wifi.first().map(|s| s.t),
                 waypoints: walk.waypoints.clone(),
-            }
+                coverage: coverage.clone(),
+            };
+            (prepared, locate_time)
         })
-        .collect())
+        .collect();
+    // Matcher cost of the fold (for `-v` runs: visited fraction and queries per second of
+    // matcher time, summed over the fold's walks).
+    let scans: usize = timed.iter().map(|(p, _)| p.observations.len()).sum();
+    let visited: usize = timed
+        .iter()
+        .flat_map(|(p, _)| p.observations.iter().map(|o| o.visited))
+        .sum();
+    let locate_s: f64 = timed.iter().map(|(_, d)| d.as_secs_f64()).sum();
+    tracing::info!(
+        floor = %floor.label,
+        fold,
+        map_points = matcher.map().len(),
+        scans,
+        visited,
+        visited_fraction = visited as f64 / (scans.max(1) * matcher.map().len().max(1)) as f64,
+        locate_s,
+        "fold matcher"
+    );
+    Ok(timed.into_iter().map(|(p, _)| p).collect())
 }
 
 /// Mixes the evaluation seed with a walk id (FNV-1a), so every walk has its own stream.
@@ -341,13 +421,49 @@ fn walk_seed(seed: u64, walk: &str) -> u64 {
     h
 }
 
+/// What the schemes may use of a floor plan, built once per floor and shared.
+#[derive(Debug, Clone)]
+pub struct FloorEnv {
+    /// Wall index (wall-aware particle filters).
+    pub walls: Arc<WallIndex>,
+    /// Walkable-space raster (`pmf`, map matching); `None` when the plan has no outline.
+    pub walkable: Option<Arc<WalkableGrid>>,
+}
+
+/// Raster cell of [`FloorEnv::walkable`], metres.
+pub const WALKABLE_CELL_M: f64 = 0.5;
+
+impl FloorEnv {
+    /// Indexes the plan of `floor`.
+    pub fn new(floor: &FloorInput) -> Self {
+        let plan = &floor.data.plan;
+        let walkable = if plan.outline.is_empty() {
+            None
+        } else {
+            match WalkableGrid::new(plan, WALKABLE_CELL_M) {
+                Ok(g) => Some(Arc::new(g)),
+                Err(e) => {
+                    tracing::warn!(floor = %floor.label, error = %e, "no walkable raster");
+                    None
+                }
+            }
+        };
+        Self {
+            walls: Arc::new(WallIndex::new(&plan.walls)),
+            walkable,
+        }
+    }
+}
+
 /// Runs one scheme causally over one prepared walk: steps and observations merged in time
 /// order (a step before a Wi-Fi fix of the same millisecond), the estimate recorded after
-/// every input. `walls` is the floor's wall index (for wall-aware schemes).
+/// every input. `env` is the floor's plan (for wall-aware schemes and map matching); with
+/// `map_matching` every estimate is projected onto walkable space ([`MapMatched`]).
 pub fn run_scheme(
     scheme: &SchemeConfig,
     walk: &PreparedWalk,
-    walls: Option<Arc<WallIndex>>,
+    env: Option<&FloorEnv>,
+    map_matching: bool,
     seed: u64,
 ) -> Result<Track, EvalError> {
     let is_pdr_baseline = scheme.name() == "pdr";
@@ -356,15 +472,21 @@ pub fn run_scheme(
     } else {
         None
     };
+    let walkable = env.and_then(|e| e.walkable.clone());
     let ctx = BuildContext {
-        walls,
+        walls: env.map(|e| e.walls.clone()),
         seed: walk_seed(seed, &walk.walk),
         start: start.map(|w| w.position),
+        walkable: walkable.clone(),
+        coverage: Some(walk.coverage.clone()),
     };
     let mut fuser = scheme.build(&ctx).map_err(|source| EvalError::Scheme {
         scheme: scheme.name().to_string(),
         source,
     })?;
+    if map_matching && let Some(grid) = walkable {
+        fuser = Box::new(MapMatched::new(fuser, grid));
+    }
     let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
     if let (Some(w), Some(e)) = (start, fuser.estimate()) {
         track.push((w.t, e.position));
@@ -401,10 +523,7 @@ pub fn run_prepared(
         .iter()
         .map(|s| cfg.scheme(s))
         .collect::<Result<_, _>>()?;
-    let walls: Vec<Arc<WallIndex>> = floors
-        .iter()
-        .map(|f| Arc::new(WallIndex::new(&f.data.plan.walls)))
-        .collect();
+    let envs: Vec<FloorEnv> = floors.par_iter().map(FloorEnv::new).collect();
     let jobs: Vec<(usize, usize)> = (0..prepared.len())
         .flat_map(|w| (0..configs.len()).map(move |s| (w, s)))
         .collect();
@@ -415,7 +534,8 @@ pub fn run_prepared(
             let track = run_scheme(
                 &configs[s],
                 pw,
-                Some(walls[pw.floor_index].clone()),
+                Some(&envs[pw.floor_index]),
+                cfg.map_matching,
                 cfg.seed,
             )?;
             let from = if cfg.score_from_first_scan {
@@ -460,13 +580,19 @@ pub fn tracks_of(
     cfg: &EvalConfig,
     schemes: &[String],
 ) -> Result<Vec<(String, Track)>, EvalError> {
-    let walls = Some(Arc::new(WallIndex::new(&floor.data.plan.walls)));
+    let env = FloorEnv::new(floor);
     schemes
         .iter()
         .map(|s| {
             Ok((
                 s.clone(),
-                run_scheme(&cfg.scheme(s)?, walk, walls.clone(), cfg.seed)?,
+                run_scheme(
+                    &cfg.scheme(s)?,
+                    walk,
+                    Some(&env),
+                    cfg.map_matching,
+                    cfg.seed,
+                )?,
             ))
         })
         .collect()

@@ -31,7 +31,9 @@
 //! finishes, so a sweep that is stopped keeps all it finished; `resume` skips configs whose
 //! `id` is already in the file (a torn last line is dropped). When a run completes, the file
 //! is rewritten sorted by index, so an interrupted-and-resumed sweep ends with the same file
-//! as an uninterrupted one.
+//! as an uninterrupted one. [`SweepOptions::stop`] is a polite stop (`wipdr sweep` sets it on
+//! Ctrl-C): no new config starts, running ones finish and are written, and the outcome says
+//! [`SweepOutcome::stopped`].
 //!
 //! ```
 //! use wipdr_eval::sweep::SweepSpec;
@@ -54,7 +56,9 @@ use std::collections::{BTreeMap, HashSet};
 use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use thiserror::Error;
 
 /// Errors of sweeps.
@@ -731,6 +735,19 @@ pub struct SweepOptions {
     pub shard: Option<(usize, usize)>,
     /// Stop after this many configs have finished in this run (the rest stays to resume).
     pub max_configs: Option<usize>,
+    /// A stop request (e.g. set by a Ctrl-C handler): once it is `true`, no new config starts;
+    /// configs already running finish and are written, and the run returns incomplete, ready
+    /// to be resumed.
+    pub stop: Option<Arc<AtomicBool>>,
+}
+
+impl SweepOptions {
+    /// Whether a stop was requested.
+    pub fn stop_requested(&self) -> bool {
+        self.stop
+            .as_ref()
+            .is_some_and(|flag| flag.load(Ordering::SeqCst))
+    }
 }
 
 /// The outcome of [`run_sweep`].
@@ -745,6 +762,8 @@ pub struct SweepOutcome {
     pub skipped: usize,
     /// Whether every config of this (shard of the) sweep is now in the file.
     pub complete: bool,
+    /// Whether the run ended early because [`SweepOptions::stop`] was set.
+    pub stopped: bool,
 }
 
 /// Builds the evaluation config of one sweep point: `fuser.` paths address the scheme's
@@ -820,23 +839,33 @@ pub fn run_sweep(
     let schemes = vec![spec.scheme.clone()];
     let mut ran = 0;
     for (_, group) in &groups {
+        if options.stop_requested() {
+            break;
+        }
         let prepared = crate::pipeline::prepare(floors, &group[0].1)?;
-        let results: Vec<Result<(), crate::pipeline::EvalError>> = group
+        // Each config reports whether it ran (false: skipped because a stop was requested
+        // before it started).
+        let results: Vec<Result<bool, crate::pipeline::EvalError>> = group
             .par_iter()
             .map(|(p, cfg)| {
+                if options.stop_requested() {
+                    return Ok(false);
+                }
                 let report =
                     crate::pipeline::run_prepared(floors, &prepared, cfg, &schemes, &|| {})?;
                 let summary = report.pooled.get(&spec.scheme).copied().unwrap_or_default();
                 file.append(p, &summary, spec.objective).map_err(to_eval)?;
                 on_done();
-                Ok(())
+                Ok(true)
             })
             .collect();
         for r in results {
-            r?;
+            if r? {
+                ran += 1;
+            }
         }
-        ran += group.len();
     }
+    let stopped = options.stop_requested() && skipped + ran < points.len();
     let complete = skipped + ran == points.len();
     let rows = if complete {
         file.finish().map_err(to_eval)?
@@ -849,5 +878,6 @@ pub fn run_sweep(
         ran,
         skipped,
         complete,
+        stopped,
     })
 }

@@ -5,9 +5,15 @@
 //! weaker than the threshold are dropped (-85 dBm when the walker is stationary, -75 dBm when
 //! moving; the motion state comes from the caller), and the candidates are the reference points
 //! whose top-2 holds the scan's strongest AP (eq. 6: `AP_max,online ∈ {AP_top2,offline}`).
-//! WKNN runs over the candidates. Fallbacks: when the threshold leaves no reading, the
+//! WKNN runs over the candidates, with the brute-force engine's compact layout restricted to
+//! the candidate rows ([`KnnMatcher::locate_among`]; distance and representation configurable,
+//! Euclidean on raw dBm by default). Fallbacks: when the threshold leaves no reading, the
 //! strongest reading is kept; when no reference point matches, the whole map is searched.
 //! `visited` is the number of candidates whose distance was computed.
+//!
+//! Callers that know the walker's steps (the evaluation pipeline) derive the motion state with
+//! [`motion_at`]: moving when a step was detected within
+//! [`ApIndexConfig::stationary_after_ms`] before the scan.
 //!
 //! ```
 //! use wipdr_fingerprint::ap_index::{ApIndexConfig, ApIndexMatcher};
@@ -24,12 +30,12 @@
 //! assert_eq!(obs.visited, 2);
 //! ```
 
-use crate::cluster_search::{shifted_norms, wknn_over};
+use crate::distance::{Metric, Representation};
 use crate::matcher::Weighting;
-use crate::{FingerprintError, Matcher, Query, RadioMap};
+use crate::{FingerprintError, KnnConfig, KnnMatcher, Matcher, Query, RadioMap};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
-use wipdr_core::{MotionState, WifiObservation};
+use wipdr_core::{MotionState, StepEvent, TimestampMs, WifiObservation};
 
 /// Settings of the AP-matching index (paper 002 defaults).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -49,6 +55,14 @@ pub struct ApIndexConfig {
     pub k: usize,
     /// WKNN weighting.
     pub weighting: Weighting,
+    /// Signal distance of the WKNN over the candidates (paper 002 eq. 1: Euclidean).
+    pub metric: Metric,
+    /// Data representation of the WKNN (raw dBm, as the paper).
+    pub representation: Representation,
+    /// For callers deriving motion from PDR steps ([`motion_at`]): the walker counts as
+    /// stationary when no step was detected within this many ms before the scan (2,000 ms:
+    /// about four step periods; not from the paper, which takes the state from its PDR).
+    pub stationary_after_ms: i64,
 }
 
 impl Default for ApIndexConfig {
@@ -61,18 +75,51 @@ impl Default for ApIndexConfig {
             apply_threshold: true,
             k: 5,
             weighting: Weighting::InverseDistance { power: 1.0 },
+            metric: Metric::Euclidean,
+            representation: Representation::Raw,
+            stationary_after_ms: 2_000,
         }
     }
 }
 
+impl ApIndexConfig {
+    /// The WKNN run over the candidates.
+    pub fn inner(&self) -> KnnConfig {
+        KnnConfig {
+            k: self.k,
+            weighting: self.weighting,
+            metric: self.metric,
+            representation: self.representation,
+        }
+    }
+}
+
+/// The walker's motion state at time `t` from the PDR steps detected so far (`steps` in time
+/// order; only steps at or before `t` are used, so it is causal): the last step's state, with
+/// `stationary` set when that step is more than `stationary_after_ms` before `t` or there is
+/// none.
+pub fn motion_at(steps: &[StepEvent], t: TimestampMs, stationary_after_ms: i64) -> MotionState {
+    let last = steps.partition_point(|s| s.t <= t);
+    match last.checked_sub(1).map(|i| &steps[i]) {
+        Some(step) => MotionState {
+            stationary: t - step.t > stationary_after_ms,
+            ..step.motion
+        },
+        None => MotionState {
+            stationary: true,
+            ..MotionState::default()
+        },
+    }
+}
+
 /// The `apindex` matcher.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ApIndexMatcher {
-    map: Arc<RadioMap>,
     config: ApIndexConfig,
-    /// For each AP column, the reference points with that AP among their top APs.
+    /// For each AP column, the reference points with that AP among their top APs, ascending.
     index: Vec<Vec<u32>>,
-    norms: Vec<f64>,
+    /// The WKNN over candidate rows (brute-force engine and layout).
+    inner: KnnMatcher,
 }
 
 impl ApIndexMatcher {
@@ -99,8 +146,7 @@ impl ApIndexMatcher {
             }
         }
         Ok(Self {
-            norms: shifted_norms(&map),
-            map,
+            inner: KnnMatcher::new(map, config.inner())?,
             config,
             index,
         })
@@ -111,8 +157,13 @@ impl ApIndexMatcher {
         self.index.get(j).map_or(&[], |v| v.as_slice())
     }
 
+    /// The configuration.
+    pub fn config(&self) -> &ApIndexConfig {
+        &self.config
+    }
+
     /// Locates a query with the walker's motion state (stationary -> the -85 dBm threshold,
-    /// moving -> -75 dBm).
+    /// moving -> -75 dBm); the same as [`Matcher::locate_with_motion`].
     pub fn locate_with_motion(
         &self,
         query: &Query,
@@ -157,21 +208,10 @@ impl ApIndexMatcher {
             .map(|&(j, _)| j as usize)
             .ok_or(FingerprintError::EmptyScan)?;
         let matched = self.indexed_under(strongest);
-        let candidates: Vec<usize> = if matched.is_empty() {
-            (0..self.map.len()).collect()
-        } else {
-            matched.iter().map(|&i| i as usize).collect()
-        };
-        let visited = candidates.len();
-        wknn_over(
-            &self.map,
-            &self.norms,
-            &kept,
-            &candidates,
-            self.config.k,
-            self.config.weighting,
-            visited,
-        )
+        if matched.is_empty() {
+            return self.inner.locate(&kept);
+        }
+        self.inner.locate_among(&kept, matched, matched.len())
     }
 }
 
@@ -179,20 +219,30 @@ impl Matcher for ApIndexMatcher {
     fn name(&self) -> String {
         let c = &self.config;
         format!(
-            "apindex(top={},threshold={},moving={},k={})",
+            "apindex(top={},threshold={},still={},moving={},assume_moving={},{})",
             c.top_offline,
             if c.apply_threshold { "on" } else { "off" },
+            c.stationary_threshold_dbm,
+            c.moving_threshold_dbm,
             c.assume_moving,
-            c.k
+            c.inner().describe()
         )
     }
 
     fn map(&self) -> &RadioMap {
-        &self.map
+        self.inner.map()
     }
 
     fn locate(&self, query: &Query) -> Result<WifiObservation, FingerprintError> {
         self.locate_moving(query, self.config.assume_moving)
+    }
+
+    fn locate_with_motion(
+        &self,
+        query: &Query,
+        motion: &MotionState,
+    ) -> Result<WifiObservation, FingerprintError> {
+        self.locate_moving(query, !motion.stationary)
     }
 }
 
@@ -240,6 +290,60 @@ mod tests {
         let obs = m.locate_moving(&only_weak, true).unwrap();
         assert_eq!(obs.visited, 1);
         assert_eq!(obs.candidates[0].index, 2);
+    }
+
+    #[test]
+    fn motion_comes_from_the_last_step_before_the_scan() {
+        let step = |t, stationary| StepEvent {
+            t,
+            length: 0.7,
+            heading: 0.0,
+            heading_change: 0.0,
+            period_s: 0.5,
+            motion: MotionState {
+                stationary,
+                ..MotionState::default()
+            },
+        };
+        let steps = [step(1_000, true), step(1_500, false), step(9_000, false)];
+        assert!(motion_at(&steps, 500, 2_000).stationary); // no step yet
+        assert!(!motion_at(&steps, 1_200, 2_000).stationary); // step 200 ms ago
+        assert!(!motion_at(&steps, 3_500, 2_000).stationary); // 2,000 ms: still moving
+        assert!(motion_at(&steps, 3_501, 2_000).stationary); // longer: stationary
+        // A later step is not used (causal).
+        assert!(motion_at(&steps, 8_999, 2_000).stationary);
+        let m = ApIndexMatcher::new(map(), ApIndexConfig::default()).unwrap();
+        let query = q(vec![(0, -78.0), (2, -80.0)]);
+        let dynamic: &dyn Matcher = &m;
+        assert_eq!(
+            dynamic
+                .locate_with_motion(&query, &motion_at(&steps, 1_200, 2_000))
+                .unwrap(),
+            m.locate_moving(&query, true).unwrap()
+        );
+    }
+
+    #[test]
+    fn candidate_search_equals_brute_force_over_the_candidates() {
+        // Every point hears AP 0 among its top two: the index search is the brute force.
+        let csv = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
+                   -40,-60,-80,0,0,0,0,0\n-45,-40,-80,5,0,0,0,0\n-41,-70,-60,10,0,0,0,0\n";
+        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let map = Arc::new(RadioMap::from_table(&t, RadioMapConfig::default()).unwrap());
+        for metric in ["euclidean", "manhattan", "sorensen", "shared_ap"] {
+            let cfg = ApIndexConfig {
+                k: 2,
+                metric: Metric::parse(metric).unwrap(),
+                ..ApIndexConfig::default()
+            };
+            let idx = ApIndexMatcher::new(map.clone(), cfg).unwrap();
+            let brute = KnnMatcher::new(map.clone(), cfg.inner()).unwrap();
+            let query = q(vec![(0, -42.0), (1, -55.0), (2, -70.0)]);
+            let a = idx.locate(&query).unwrap();
+            let b = brute.locate(&query).unwrap();
+            assert_eq!(a.candidates, b.candidates, "{metric}");
+            assert_eq!(a.visited, 3);
+        }
     }
 
     #[test]

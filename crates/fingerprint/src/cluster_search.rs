@@ -3,16 +3,19 @@
 //!
 //! Offline: the reference points are grouped by (building, floor) (the paper's map is one
 //! floor; GeoDis across floors means nothing), and each group is clustered with
-//! [`affinity_propagation`] on `-MixDis` (or the signal similarity). Each cluster keeps its
-//! exemplar, its members, its *AP set* (the APs heard at the exemplar) and its centre vector
-//! (the exemplar's fingerprint, or the members' mean).
+//! [`affinity_propagation`](crate::affinity::affinity_propagation) on `-MixDis` (or the
+//! signal similarity). Each cluster keeps its exemplar, its members, its *AP set* (the APs
+//! heard at the exemplar) and its centre vector (the exemplar's fingerprint, or the members'
+//! mean).
 //!
 //! Online, for a query:
 //! 1. take the `n_strongest` (3-5, default 3) strongest heard APs of the query and keep the
 //!    clusters whose AP set contains all of them;
 //! 2. among those, pick the cluster whose centre is nearest in signal space (Euclidean over the
 //!    filled vectors);
-//! 3. WKNN (paper 001 eq. 7) inside it.
+//! 3. WKNN (paper 001 eq. 7) inside it, with the brute-force engine's compact layout
+//!    restricted to the members ([`KnnMatcher::locate_among`]; Euclidean on raw dBm by
+//!    default, distance and representation configurable).
 //!
 //! Fallback when no cluster matches (configurable): drop the weakest of the `N` APs and try
 //! again down to 1 AP, then compare with every cluster centre. `visited` counts the centres
@@ -37,12 +40,13 @@
 //! ```
 
 use crate::affinity::{AffinityConfig, AffinityError, affinity_propagation_owned};
+use crate::distance::{Metric, Representation};
 use crate::kmeans::{KMeansConfig, kmeans};
-use crate::matcher::{Weighting, observation_from_neighbours};
+use crate::matcher::Weighting;
 use crate::mixdis::{
     MixDisConfig, OwnedFingerprints, SimilarityKind, similarity, squared_euclidean,
 };
-use crate::{FingerprintError, Matcher, Query, RadioMap};
+use crate::{FingerprintError, KnnConfig, KnnMatcher, Matcher, Query, RadioMap};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -95,6 +99,11 @@ pub struct ClusterSearchConfig {
     pub k: usize,
     /// WKNN weighting (paper 001 eq. 7: `1/d`).
     pub weighting: Weighting,
+    /// Signal distance of the WKNN inside the clusters (paper 001: Euclidean). The nearest
+    /// centre is always Euclidean over the filled vectors (step 2).
+    pub metric: Metric,
+    /// Data representation of the WKNN inside the clusters (raw dBm, as the paper).
+    pub representation: Representation,
     /// Clustering similarity (paper: MixDis).
     pub similarity: SimilarityKind,
     /// MixDis settings.
@@ -121,6 +130,8 @@ impl Default for ClusterSearchConfig {
             n_strongest: 3,
             k: 5,
             weighting: Weighting::InverseDistance { power: 1.0 },
+            metric: Metric::Euclidean,
+            representation: Representation::Raw,
             similarity: SimilarityKind::MixDis,
             mixdis: MixDisConfig::default(),
             affinity: AffinityConfig::default(),
@@ -146,6 +157,18 @@ pub struct MapCluster {
     pub centre: Vec<f32>,
 }
 
+impl ClusterSearchConfig {
+    /// The WKNN run inside the chosen clusters.
+    pub fn inner(&self) -> KnnConfig {
+        KnnConfig {
+            k: self.k,
+            weighting: self.weighting,
+            metric: self.metric,
+            representation: self.representation,
+        }
+    }
+}
+
 /// Clustering statistics of a build.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ClusterBuildReport {
@@ -161,13 +184,15 @@ pub struct ClusterBuildReport {
 }
 
 /// The `apc` matcher.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ClusterSearchMatcher {
     map: Arc<RadioMap>,
     config: ClusterSearchConfig,
     clusters: Vec<MapCluster>,
     report: ClusterBuildReport,
     norms: Vec<f64>,
+    /// The WKNN over the chosen clusters' members.
+    inner: KnnMatcher,
 }
 
 /// Exemplars (group-local indices) and members of one group's clusters.
@@ -242,45 +267,6 @@ pub(crate) fn query_norm(map: &RadioMap, query: &Query) -> f64 {
         .iter()
         .map(|&(_, r)| (f64::from(r) - f) * (f64::from(r) - f))
         .sum()
-}
-
-/// Euclidean WKNN over the candidate reference points `candidates` (map indices).
-pub(crate) fn wknn_over(
-    map: &RadioMap,
-    norms: &[f64],
-    query: &Query,
-    candidates: &[usize],
-    k: usize,
-    weighting: Weighting,
-    visited: usize,
-) -> Result<WifiObservation, FingerprintError> {
-    if let Some(&(j, _)) = query
-        .heard
-        .iter()
-        .find(|&&(j, _)| j as usize >= map.n_aps())
-    {
-        return Err(FingerprintError::DimensionMismatch {
-            expected: map.n_aps(),
-            found: j as usize + 1,
-        });
-    }
-    let q_norm = query_norm(map, query);
-    let mut d: Vec<(f64, usize)> = candidates
-        .iter()
-        .map(|&i| (sparse_distance(map, norms, query, q_norm, i), i))
-        .collect();
-    let k = k.max(1).min(d.len());
-    if k == 0 {
-        return Err(FingerprintError::EmptyMap);
-    }
-    let cmp = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-    if k < d.len() {
-        d.select_nth_unstable_by(k - 1, cmp);
-        d.truncate(k);
-    }
-    d.sort_unstable_by(cmp);
-    let neighbours: Vec<(usize, f64)> = d.into_iter().map(|(dist, i)| (i, dist)).collect();
-    observation_from_neighbours(map, query, &neighbours, weighting, visited)
 }
 
 /// The `n` strongest heard columns of a query, strongest first (ties: lower column).
@@ -406,6 +392,7 @@ impl ClusterSearchMatcher {
         report.clusters = clusters.len();
         Ok(Self {
             norms: shifted_norms(&map),
+            inner: KnnMatcher::new(map.clone(), config.inner())?,
             map,
             config: config.clone(),
             clusters,
@@ -507,21 +494,15 @@ impl Matcher for ClusterSearchMatcher {
             })
             .map(|(_, &(_, c))| c)
             .collect();
-        let members: Vec<usize> = chosen
+        let mut members: Vec<u32> = chosen
             .iter()
-            .flat_map(|&c| self.clusters[c].members.iter().copied())
+            .flat_map(|&c| self.clusters[c].members.iter().map(|&i| i as u32))
             .collect();
+        // Ascending, so that ties resolve by map index as in the brute force.
+        members.sort_unstable();
         // (3) WKNN inside.
         let visited = candidates.len() + members.len();
-        wknn_over(
-            &self.map,
-            &self.norms,
-            query,
-            &members,
-            self.config.k,
-            self.config.weighting,
-            visited,
-        )
+        self.inner.locate_among(query, &members, visited)
     }
 }
 
@@ -568,10 +549,26 @@ fn parse_num<T: std::str::FromStr>(spec: &str, key: &str, v: &str) -> Result<T, 
         .map_err(|_| FingerprintError::InvalidConfig(format!("{spec}: bad value {v:?} for {key}")))
 }
 
+fn parse_metric(spec: &str, v: &str) -> Result<Metric, FingerprintError> {
+    Metric::parse(v)
+        .ok_or_else(|| FingerprintError::InvalidConfig(format!("{spec}: unknown metric {v:?}")))
+}
+
+fn parse_representation(spec: &str, v: &str) -> Result<Representation, FingerprintError> {
+    Representation::parse(v).ok_or_else(|| {
+        FingerprintError::InvalidConfig(format!("{spec}: unknown representation {v:?}"))
+    })
+}
+
 /// Applies `NAME:key=value,...` settings to `config`. Keys: `apc`: `n` (strongest APs),
 /// `k`, `clusters` (nearest clusters searched), `slack`, `centre` (exemplar|mean), `sim`
-/// (mixdis|signal), `damping`, `kmeans` (K-means baseline with this mean cluster size); `apindex`: `k`, `top` (offline APs indexed), `moving` (0|1),
-/// `threshold` (0|1); `med`: `k`, `window`.
+/// (mixdis|signal), `damping`, `kmeans` (K-means baseline with this mean cluster size),
+/// `metric` and `rep` (the inner WKNN, names of [`Metric::parse`] /
+/// [`Representation::parse`]); `apindex`: `k`, `top` (offline APs indexed), `moving` (`0` or
+/// `1`: assume a moving walker when no motion is given; any other number: the moving
+/// threshold in dBm, e.g. `moving=-80`), `still` (the stationary threshold, dBm),
+/// `still_after` (ms without a step before the walker counts as stationary), `threshold`
+/// (0|1), `metric`, `rep`; `med`: `k`, `window`.
 pub fn apply_spec(
     spec: &str,
     config: &mut ClusteringMatchersConfig,
@@ -604,9 +601,22 @@ pub fn apply_spec(
                     _ => return Err(bad()),
                 }
             }
+            ("apc", "metric") => config.apc.metric = parse_metric(spec, &v)?,
+            ("apc", "rep") => config.apc.representation = parse_representation(spec, &v)?,
             ("apindex", "k") => config.apindex.k = parse_num(spec, &k, &v)?,
             ("apindex", "top") => config.apindex.top_offline = parse_num(spec, &k, &v)?,
-            ("apindex", "moving") => config.apindex.assume_moving = v == "1",
+            ("apindex", "moving") => match v.as_str() {
+                "0" | "1" => config.apindex.assume_moving = v == "1",
+                _ => config.apindex.moving_threshold_dbm = parse_num(spec, &k, &v)?,
+            },
+            ("apindex", "still") => {
+                config.apindex.stationary_threshold_dbm = parse_num(spec, &k, &v)?
+            }
+            ("apindex", "still_after") => {
+                config.apindex.stationary_after_ms = parse_num(spec, &k, &v)?
+            }
+            ("apindex", "metric") => config.apindex.metric = parse_metric(spec, &v)?,
+            ("apindex", "rep") => config.apindex.representation = parse_representation(spec, &v)?,
             ("apindex", "threshold") => config.apindex.apply_threshold = v == "1",
             ("med", "k") => config.med.k = parse_num(spec, &k, &v)?,
             ("med", "window") => config.med.window = parse_num(spec, &k, &v)?,
@@ -734,6 +744,24 @@ mod tests {
         );
         assert!(frac < 0.25);
         assert!(e_apc <= 1.05 * e_brute);
+    }
+
+    #[test]
+    fn specs_set_thresholds_and_the_inner_search() {
+        let mut cfg = ClusteringMatchersConfig::default();
+        apply_spec("apindex:moving=-80,still=-90,still_after=3000", &mut cfg).unwrap();
+        assert_eq!(cfg.apindex.moving_threshold_dbm, -80.0);
+        assert_eq!(cfg.apindex.stationary_threshold_dbm, -90.0);
+        assert_eq!(cfg.apindex.stationary_after_ms, 3000);
+        assert!(!cfg.apindex.assume_moving);
+        apply_spec("apindex:moving=1,metric=sorensen,rep=powed", &mut cfg).unwrap();
+        assert!(cfg.apindex.assume_moving);
+        assert_eq!(cfg.apindex.moving_threshold_dbm, -80.0);
+        assert_eq!(cfg.apindex.metric, Metric::Sorensen);
+        apply_spec("apc:metric=manhattan,rep=positive", &mut cfg).unwrap();
+        assert_eq!(cfg.apc.inner().metric, Metric::Manhattan);
+        assert!(apply_spec("apindex:moving=loud", &mut cfg).is_err());
+        assert!(apply_spec("apc:metric=cosine", &mut cfg).is_err());
     }
 
     #[test]

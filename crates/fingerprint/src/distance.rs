@@ -45,6 +45,13 @@ pub struct Neyman;
 /// Smallest denominator of [`Neyman`].
 pub const NEYMAN_FLOOR: f32 = 1e-3;
 
+/// Neyman's chi-square as the reference code of Montoliu, Pérez-Navarro, Torres-Sospedra
+/// (2022, `distances.py`) computes it: `sum (q - r)^2 / q` over the APs the *query* heard
+/// (query value above the null), normalised by the query's value. (Our [`Neyman`] divides by
+/// the reference value over every AP.)
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NeymanQuery;
+
 /// Penalised log-Gaussian distance (after Torres-Sospedra et al. 2015): for an AP heard by
 /// both, `min((a - b)^2 / (2 sigma^2), -ln eps)` (the negative log of a Gaussian likelihood,
 /// floored at `eps`); for an AP heard by one side only, `-ln eps + alpha * v` with `v` its
@@ -182,6 +189,16 @@ impl Distance for Neyman {
     }
 }
 
+impl Distance for NeymanQuery {
+    fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        a.iter()
+            .zip(b)
+            .filter(|&(&q, _)| q > null && q > 0.0)
+            .map(|(&q, &r)| (q - r) * (q - r) / q)
+            .sum()
+    }
+}
+
 impl Distance for Plgd {
     fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
         let cap = -self.epsilon.ln();
@@ -239,6 +256,8 @@ pub enum Metric {
     Sorensen,
     /// [`Neyman`].
     Neyman,
+    /// [`NeymanQuery`].
+    NeymanQuery,
     /// [`Plgd`].
     Plgd(Plgd),
     /// [`SharedAp`].
@@ -246,8 +265,8 @@ pub enum Metric {
 }
 
 impl Metric {
-    /// Short name (`manhattan`, `euclidean`, `sqeuclidean`, `sorensen`, `neyman`, `plgd`,
-    /// `shared_ap`).
+    /// Short name (`manhattan`, `euclidean`, `sqeuclidean`, `sorensen`, `neyman`,
+    /// `neyman_query`, `plgd`, `shared_ap`).
     pub fn name(&self) -> &'static str {
         match self {
             Metric::Manhattan => "manhattan",
@@ -255,6 +274,7 @@ impl Metric {
             Metric::SquaredEuclidean => "sqeuclidean",
             Metric::Sorensen => "sorensen",
             Metric::Neyman => "neyman",
+            Metric::NeymanQuery => "neyman_query",
             Metric::Plgd(_) => "plgd",
             Metric::SharedAp(_) => "shared_ap",
         }
@@ -268,6 +288,7 @@ impl Metric {
             "sqeuclidean" => Metric::SquaredEuclidean,
             "sorensen" => Metric::Sorensen,
             "neyman" => Metric::Neyman,
+            "neyman_query" => Metric::NeymanQuery,
             "plgd" => Metric::Plgd(Plgd::default()),
             "shared_ap" => Metric::SharedAp(SharedAp::default()),
             _ => return None,
@@ -282,6 +303,7 @@ impl Metric {
             Metric::SquaredEuclidean => SquaredEuclidean.eval(a, b, null),
             Metric::Sorensen => Sorensen.eval(a, b, null),
             Metric::Neyman => Neyman.eval(a, b, null),
+            Metric::NeymanQuery => NeymanQuery.eval(a, b, null),
             Metric::Plgd(d) => d.eval(a, b, null),
             Metric::SharedAp(d) => d.eval(a, b, null),
         }
@@ -307,16 +329,25 @@ pub enum Representation {
         /// Exponent (e).
         beta: f32,
     },
+    /// [`Representation::Exponential`] for heard values, exactly 0 for "not heard", as the
+    /// reference code of Montoliu, Pérez-Navarro, Torres-Sospedra (2022,
+    /// `data_representation.py`) computes it (the formula alone maps "not heard" to
+    /// `1 / exp(-null / alpha)`).
+    ExponentialNullZero {
+        /// Scale, dB (24).
+        alpha: f32,
+    },
 }
 
 impl Representation {
-    /// Short name (`raw`, `positive`, `exponential`, `powed`).
+    /// Short name (`raw`, `positive`, `exponential`, `powed`, `exponential_null0`).
     pub fn name(&self) -> &'static str {
         match self {
             Representation::Raw => "raw",
             Representation::Positive => "positive",
             Representation::Exponential { .. } => "exponential",
             Representation::Powed { .. } => "powed",
+            Representation::ExponentialNullZero { .. } => "exponential_null0",
         }
     }
 
@@ -329,6 +360,7 @@ impl Representation {
             "powed" => Representation::Powed {
                 beta: std::f32::consts::E,
             },
+            "exponential_null0" => Representation::ExponentialNullZero { alpha: 24.0 },
             _ => return None,
         })
     }
@@ -376,6 +408,10 @@ impl Transform {
                 let scale = (-null).max(1.0);
                 (pos / scale).powf(beta)
             }
+            Representation::ExponentialNullZero { alpha } => match v {
+                None => 0.0,
+                Some(v) => ((v - null).max(0.0) / alpha).exp() / (-null / alpha).exp(),
+            },
         }
     }
 }
@@ -383,6 +419,27 @@ impl Transform {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reference_code_variants() {
+        // Neyman over the query's APs, divided by the query's value.
+        let q = [2.0, 0.0, 4.0];
+        let r = [1.0, 5.0, 0.0];
+        assert_eq!(NeymanQuery.eval(&q, &r, 0.0), 1.0 / 2.0 + 16.0 / 4.0);
+        assert_eq!(Metric::parse("neyman_query"), Some(Metric::NeymanQuery));
+        // Exponential with not heard = 0; heard as the exponential formula.
+        let rep = Representation::parse("exponential_null0").unwrap();
+        let t = Transform::new(rep, -110.0, Some(-101.0));
+        assert_eq!(t.null_value(), 0.0);
+        let e = Transform::new(
+            Representation::parse("exponential").unwrap(),
+            -110.0,
+            Some(-101.0),
+        );
+        assert_eq!(t.apply(Some(-60.0)), e.apply(Some(-60.0)));
+        assert!(e.null_value() > 0.0);
+        assert_eq!(rep.name(), "exponential_null0");
+    }
 
     #[test]
     fn basic_values() {

@@ -3,12 +3,16 @@
 //!
 //! Two exact engines, picked from the configuration:
 //!
-//! - **sparse** (Manhattan, Euclidean, squared Euclidean, Sørensen in the `raw`, `positive` and
-//!   `powed` representations, where "not heard" is 0): the map is stored AP-major as lists of
-//!   the points that heard each AP. A query touches only the lists of its heard APs and
-//!   accumulates the shared-AP term; the rest follows from precomputed per-point norms
-//!   (`|x - y|^2 = |x|^2 + |y|^2 - 2 x.y`, and `|x - y|_1 = |x|_1 + |y|_1 - sum_shared(|x| + |y|
-//!   - |x - y|)`). On UJI1 a query reads ~3 % of the dense matrix.
+//! - **sparse** (Manhattan, Euclidean, squared Euclidean, Sørensen and the shared-AP distance
+//!   in the `raw`, `positive` and `powed` representations, where "not heard" is 0): the map is
+//!   stored AP-major as lists of the points that heard each AP. A query touches only the
+//!   lists of its heard APs and accumulates the shared-AP term; the rest follows from
+//!   precomputed per-point norms (`|x - y|^2 = |x|^2 + |y|^2 - 2 x.y`, and
+//!   `|x - y|_1 = |x|_1 + |y|_1 - sum_shared(|x| + |y| - |x - y|)`; shared-AP needs only the
+//!   shared count and `sum |x - y|` over shared APs).
+//!   On UJI1 a query reads ~3 % of the dense matrix. A point-major copy of the same lists
+//!   serves searches over a subset of the points ([`KnnMatcher::locate_among`], used by the
+//!   indexed matchers).
 //! - **dense** (every metric): an f32 row-major matrix padded to 8 lanes, scanned with
 //!   auto-vectorised loops.
 //!
@@ -17,7 +21,7 @@
 //! `select_nth_unstable_by` on (distance, index), so ties resolve to the lower map index.
 
 use crate::distance::{Metric, Representation, Transform};
-use crate::matcher::{Matcher, Weighting, observation_from_neighbours};
+use crate::matcher::{Matcher, Weighting, majority, observation_from_neighbours};
 use crate::{FingerprintError, Query, RadioMap};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -99,6 +103,9 @@ enum SparseKind {
     Squared,
     Manhattan,
     Sorensen,
+    /// [`SharedAp`](crate::distance::SharedAp) with its `lambda`: per point the shared-AP
+    /// count and `sum |q - x|` accumulate over the query's lists; heard = value > 0.
+    SharedAp(f32),
 }
 
 #[derive(Debug)]
@@ -113,6 +120,12 @@ enum Engine {
         norms: Vec<f32>,
         /// Per point `sum |x|`, Sørensen's numerator part.
         abs_norms: Vec<f32>,
+        /// The same values point-major (CSR over points: `row_offsets[i]..row_offsets[i+1]`
+        /// index `row_columns` / `row_values`), for searches over a subset of the points
+        /// ([`KnnMatcher::locate_among`]).
+        row_offsets: Vec<usize>,
+        row_columns: Vec<u32>,
+        row_values: Vec<f32>,
     },
     Dense {
         /// Row-major `n x stride`, padded with 0.
@@ -171,6 +184,7 @@ impl KnnMatcher {
             (Metric::SquaredEuclidean, true) => Some(SparseKind::Squared),
             (Metric::Manhattan, true) => Some(SparseKind::Manhattan),
             (Metric::Sorensen, true) => Some(SparseKind::Sorensen),
+            (Metric::SharedAp(d), true) => Some(SparseKind::SharedAp(d.lambda)),
             _ => None,
         };
         let engine = match sparse_kind {
@@ -230,6 +244,147 @@ impl KnnMatcher {
         Ok(out)
     }
 
+    /// Locates `query` among the reference points `candidates` only (map indices), with the
+    /// same distances as the brute force (so over the whole map it equals
+    /// [`Matcher::locate`]). The sparse engine reads the candidates' rows of a point-major copy
+    /// of its compact layout (cost: the candidates' heard APs, not the map); the dense engine
+    /// scans the candidates' rows. Ties go to the candidate listed first, so ascending
+    /// candidates resolve ties by map index as the brute force does. `visited` is reported as
+    /// given (the caller may count more than the rows compared here, e.g. cluster centres).
+    ///
+    /// Errors: [`FingerprintError::EmptyMap`] for no candidate,
+    /// [`FingerprintError::InvalidInput`] for an index outside the map.
+    pub fn locate_among(
+        &self,
+        query: &Query,
+        candidates: &[u32],
+        visited: usize,
+    ) -> Result<WifiObservation, FingerprintError> {
+        let mut keys = Vec::with_capacity(candidates.len());
+        let q = self.transformed_query(query)?;
+        self.candidate_keys(&q, candidates, &mut keys)?;
+        let mut nb = top_k(&keys, self.config.k);
+        for (i, d) in nb.iter_mut() {
+            *i = candidates[*i] as usize;
+            if self.squared_keys() {
+                *d = d.sqrt();
+            }
+        }
+        observation_from_neighbours(&self.map, query, &nb, self.config.weighting, visited)
+    }
+
+    /// Rank keys (as [`Self::distances_into`]) of the `candidates` rows, in candidate order.
+    fn candidate_keys(
+        &self,
+        q: &[f32],
+        candidates: &[u32],
+        out: &mut Vec<f32>,
+    ) -> Result<(), FingerprintError> {
+        if candidates.is_empty() {
+            return Err(FingerprintError::EmptyMap);
+        }
+        let n = self.map.len();
+        if let Some(&bad) = candidates.iter().find(|&&i| i as usize >= n) {
+            return Err(FingerprintError::InvalidInput(format!(
+                "candidate {bad} outside a radio map of {n} points"
+            )));
+        }
+        out.clear();
+        match &self.engine {
+            Engine::Sparse {
+                kind: SparseKind::SharedAp(lambda),
+                norms,
+                row_offsets,
+                row_columns,
+                row_values,
+                ..
+            } => {
+                let q_heard = q.iter().filter(|&&v| v > 0.0).count() as u32;
+                for &i in candidates {
+                    let i = i as usize;
+                    let range = row_offsets[i]..row_offsets[i + 1];
+                    let (mut sum, mut shared) = (0f32, 0u32);
+                    for (&j, &x) in row_columns[range.clone()].iter().zip(&row_values[range]) {
+                        let qv = q[j as usize];
+                        if qv > 0.0 {
+                            sum += (qv - x).abs();
+                            shared += 1;
+                        }
+                    }
+                    out.push(shared_ap_from_counts(
+                        *lambda, sum, shared, q_heard, norms[i],
+                    ));
+                }
+            }
+            Engine::Sparse {
+                kind,
+                norms,
+                abs_norms,
+                row_offsets,
+                row_columns,
+                row_values,
+                ..
+            } => {
+                let (mut q_norm, mut q_abs) = (0f32, 0f32);
+                for &qv in q.iter().filter(|&&v| v != 0.0) {
+                    q_abs += qv.abs();
+                    q_norm += match kind {
+                        SparseKind::Euclidean | SparseKind::Squared => qv * qv,
+                        SparseKind::Manhattan => qv.abs(),
+                        SparseKind::Sorensen => qv,
+                        // Handled by the arm above.
+                        SparseKind::SharedAp(_) => 0.0,
+                    };
+                }
+                for &i in candidates {
+                    let i = i as usize;
+                    let range = row_offsets[i]..row_offsets[i + 1];
+                    let (cols, vals) = (&row_columns[range.clone()], &row_values[range]);
+                    let key = match kind {
+                        SparseKind::Euclidean | SparseKind::Squared => {
+                            let dot: f32 = cols
+                                .iter()
+                                .zip(vals)
+                                .map(|(&j, &x)| q[j as usize] * x)
+                                .sum();
+                            (q_norm + norms[i] - 2.0 * dot).max(0.0)
+                        }
+                        SparseKind::Manhattan | SparseKind::Sorensen => {
+                            // |q| + |x| - |q - x| is 0 where the query did not hear the AP.
+                            let shared: f32 = cols
+                                .iter()
+                                .zip(vals)
+                                .map(|(&j, &x)| {
+                                    let qv = q[j as usize];
+                                    qv.abs() + x.abs() - (qv - x).abs()
+                                })
+                                .sum();
+                            if *kind == SparseKind::Manhattan {
+                                (q_norm + norms[i] - shared).max(0.0)
+                            } else {
+                                sorensen_from_shared(q_norm, q_abs, norms[i], abs_norms[i], shared)
+                            }
+                        }
+                        // Handled by the arm above.
+                        SparseKind::SharedAp(_) => 0.0,
+                    };
+                    out.push(key);
+                }
+            }
+            Engine::Dense { matrix, stride } => {
+                let mut qp = vec![0f32; *stride];
+                qp[..q.len()].copy_from_slice(q);
+                let null = self.transform.null_value();
+                let metric = self.config.metric;
+                out.extend(candidates.iter().map(|&i| {
+                    let start = i as usize * stride;
+                    metric.eval(&qp, &matrix[start..start + stride], null)
+                }));
+            }
+        }
+        Ok(())
+    }
+
     /// Whether the engine's rank keys are squared Euclidean distances standing for Euclidean
     /// ones (the square root is taken for the K winners only).
     fn squared_keys(&self) -> bool {
@@ -245,12 +400,39 @@ impl KnnMatcher {
     fn distances_into(&self, q: &[f32], out: &mut [f32]) {
         match &self.engine {
             Engine::Sparse {
+                kind: SparseKind::SharedAp(lambda),
+                offsets,
+                points,
+                values,
+                norms,
+                ..
+            } => {
+                out.fill(0.0);
+                let mut shared = vec![0u32; out.len()];
+                let mut q_heard = 0u32;
+                for (j, &qv) in q.iter().enumerate() {
+                    if qv <= 0.0 {
+                        continue;
+                    }
+                    q_heard += 1;
+                    let range = offsets[j]..offsets[j + 1];
+                    for (&i, &x) in points[range.clone()].iter().zip(&values[range]) {
+                        out[i as usize] += (qv - x).abs();
+                        shared[i as usize] += 1;
+                    }
+                }
+                for ((o, &c), &n) in out.iter_mut().zip(&shared).zip(norms) {
+                    *o = shared_ap_from_counts(*lambda, *o, c, q_heard, n);
+                }
+            }
+            Engine::Sparse {
                 kind,
                 offsets,
                 points,
                 values,
                 norms,
                 abs_norms,
+                ..
             } => {
                 out.fill(0.0);
                 let (mut q_norm, mut q_abs) = (0f32, 0f32);
@@ -263,6 +445,8 @@ impl KnnMatcher {
                         SparseKind::Euclidean | SparseKind::Squared => qv * qv,
                         SparseKind::Manhattan => qv.abs(),
                         SparseKind::Sorensen => qv,
+                        // Handled by the arm above.
+                        SparseKind::SharedAp(_) => 0.0,
                     };
                     let range = offsets[j]..offsets[j + 1];
                     let (ps, vs) = (&points[range.clone()], &values[range]);
@@ -277,6 +461,7 @@ impl KnnMatcher {
                                 out[i as usize] += qv.abs() + x.abs() - (qv - x).abs();
                             }
                         }
+                        SparseKind::SharedAp(_) => {}
                     }
                 }
                 match kind {
@@ -292,11 +477,10 @@ impl KnnMatcher {
                     }
                     SparseKind::Sorensen => {
                         for ((o, &s), &a) in out.iter_mut().zip(norms).zip(abs_norms) {
-                            let num = (q_abs + a - *o).max(0.0);
-                            let den = q_norm + s;
-                            *o = if den > 0.0 { num / den } else { 0.0 };
+                            *o = sorensen_from_shared(q_norm, q_abs, s, a, *o);
                         }
                     }
+                    SparseKind::SharedAp(_) => {}
                 }
             }
             Engine::Dense { matrix, stride } => {
@@ -408,6 +592,84 @@ impl KnnMatcher {
     }
 }
 
+/// Floor-first k-NN: the floor by majority of the `votes` nearest reference points (over
+/// every floor), then the brute-force k-NN of the inner matcher over the points of that floor
+/// only (two-stage floor-then-position matching). Exact: both stages read one distance
+/// vector. Maps without floors behave as the plain matcher.
+#[derive(Debug)]
+pub struct FloorFirstMatcher {
+    inner: KnnMatcher,
+    votes: usize,
+}
+
+impl FloorFirstMatcher {
+    /// Wraps `inner`; `votes` (at least 1) neighbours choose the floor.
+    pub fn new(inner: KnnMatcher, votes: usize) -> Result<Self, FingerprintError> {
+        if votes == 0 {
+            return Err(FingerprintError::InvalidConfig(
+                "floor-first: votes must be >= 1".into(),
+            ));
+        }
+        Ok(Self { inner, votes })
+    }
+}
+
+impl Matcher for FloorFirstMatcher {
+    fn name(&self) -> String {
+        format!("floor-first(votes={},{})", self.votes, self.inner.name())
+    }
+
+    fn map(&self) -> &RadioMap {
+        self.inner.map()
+    }
+
+    fn locate(&self, query: &Query) -> Result<WifiObservation, FingerprintError> {
+        let m = &self.inner;
+        let q = m.transformed_query(query)?;
+        let mut keys = vec![0f32; m.map.len()];
+        m.distances_into(&q, &mut keys);
+        let voters = top_k(&keys, self.votes);
+        let floor = majority(voters.iter().map(|&(i, _)| m.map.points[i].floor));
+        if floor.is_some() {
+            for (key, p) in keys.iter_mut().zip(&m.map.points) {
+                if p.floor != floor {
+                    *key = f32::INFINITY;
+                }
+            }
+        }
+        let mut nb = m.top_k(&keys);
+        nb.retain(|&(_, d)| d.is_finite());
+        observation_from_neighbours(&m.map, query, &nb, m.config.weighting, m.map.len())
+    }
+}
+
+/// Sørensen (Bray-Curtis) distance `sum |q - x| / sum (q + x)` from the query's and the
+/// point's sums and the shared-AP term `sum (|q| + |x| - |q - x|)`; 0 when both are empty.
+#[inline]
+fn sorensen_from_shared(q_sum: f32, q_abs: f32, x_sum: f32, x_abs: f32, shared: f32) -> f32 {
+    let num = (q_abs + x_abs - shared).max(0.0);
+    let den = q_sum + x_sum;
+    if den > 0.0 { num / den } else { 0.0 }
+}
+
+/// [`SharedAp`](crate::distance::SharedAp) from the sparse sums: `sum` of `|q - x|` over the
+/// `shared` APs, `q_heard` and `x_heard` APs heard by each side (as the dense definition:
+/// mean over shared, [`SHARED_AP_NONE`](crate::distance::SHARED_AP_NONE) when none, plus
+/// `lambda * (union - shared) / union`; 0 when neither heard anything).
+#[inline]
+fn shared_ap_from_counts(lambda: f32, sum: f32, shared: u32, q_heard: u32, x_heard: f32) -> f32 {
+    let union = q_heard + x_heard as u32 - shared;
+    if union == 0 {
+        return 0.0;
+    }
+    let mean = if shared > 0 {
+        sum / shared as f32
+    } else {
+        crate::distance::SHARED_AP_NONE
+    };
+    mean + lambda * (union - shared) as f32 / union as f32
+}
+
 /// The `k` smallest `(index, distance)` of `dist`, sorted by distance then index.
 pub fn top_k(dist: &[f32], k: usize) -> Vec<(usize, f64)> {
     if k <= SMALL_K {
@@ -469,7 +731,8 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
     for i in 0..n {
         for (j, v) in map.heard(i) {
             let x = t.apply(Some(v));
-            if x == 0.0 {
+            // Shared-AP's "heard" is a value above the null (0); other kinds keep any non-zero.
+            if x == 0.0 || (matches!(kind, SparseKind::SharedAp(_)) && x < 0.0) {
                 continue;
             }
             per_ap[j].push((i as u32, x));
@@ -477,6 +740,7 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
                 SparseKind::Euclidean | SparseKind::Squared => x * x,
                 SparseKind::Manhattan => x.abs(),
                 SparseKind::Sorensen => x,
+                SparseKind::SharedAp(_) => 1.0,
             };
             abs_norms[i] += x.abs();
         }
@@ -485,12 +749,25 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
     let mut points = Vec::new();
     let mut values = Vec::new();
     offsets.push(0);
-    for list in per_ap {
+    let mut per_point: Vec<Vec<(u32, f32)>> = vec![Vec::new(); n];
+    for (j, list) in per_ap.into_iter().enumerate() {
         for (i, x) in list {
             points.push(i);
             values.push(x);
+            per_point[i as usize].push((j as u32, x));
         }
         offsets.push(points.len());
+    }
+    let mut row_offsets = Vec::with_capacity(n + 1);
+    let mut row_columns = Vec::with_capacity(points.len());
+    let mut row_values = Vec::with_capacity(points.len());
+    row_offsets.push(0);
+    for list in per_point {
+        for (j, x) in list {
+            row_columns.push(j);
+            row_values.push(x);
+        }
+        row_offsets.push(row_columns.len());
     }
     Engine::Sparse {
         kind,
@@ -499,6 +776,9 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         values,
         norms,
         abs_norms,
+        row_offsets,
+        row_columns,
+        row_values,
     }
 }
 
@@ -692,6 +972,80 @@ mod tests {
             let iy: Vec<usize> = y.candidates.iter().map(|c| c.index).collect();
             assert_eq!(ix, iy);
         }
+    }
+
+    #[test]
+    fn locate_among_equals_brute_force_on_the_candidates() {
+        let map = Arc::new(random_map(11, 80, 17));
+        let all: Vec<u32> = (0..80).collect();
+        let odd: Vec<u32> = (0..80).filter(|i| i % 2 == 1).collect();
+        for cfg in all_configs() {
+            let m = KnnMatcher::new(map.clone(), cfg).unwrap();
+            for r in [0, 13, 42] {
+                let row: Vec<f32> = map
+                    .filled_row(r)
+                    .iter()
+                    .map(|&v| if v == -110.0 { 100.0 } else { v + 1.5 })
+                    .collect();
+                let q = Query::from_row(&row, &map, &QueryFilter::default()).unwrap();
+                let full = m.locate(&q).unwrap();
+                let among = m.locate_among(&q, &all, 80).unwrap();
+                assert_eq!(full, among, "{}", cfg.describe());
+                // Over the odd points: the brute-force distances restricted to them.
+                let got = m.locate_among(&q, &odd, odd.len()).unwrap();
+                let d = m.distances(&q).unwrap();
+                let mut want: Vec<(f32, usize)> =
+                    odd.iter().map(|&i| (d[i as usize], i as usize)).collect();
+                want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let wi: Vec<usize> = want.iter().take(cfg.k).map(|w| w.1).collect();
+                let gi: Vec<usize> = got.candidates.iter().map(|c| c.index).collect();
+                assert_eq!(gi, wi, "{}", cfg.describe());
+                assert_eq!(got.visited, odd.len());
+            }
+        }
+        let m = KnnMatcher::new(map.clone(), KnnConfig::default()).unwrap();
+        let q = Query::from_row(&[-60.0; 17], &map, &QueryFilter::default()).unwrap();
+        assert!(matches!(
+            m.locate_among(&q, &[], 0),
+            Err(FingerprintError::EmptyMap)
+        ));
+        assert!(matches!(
+            m.locate_among(&q, &[80], 1),
+            Err(FingerprintError::InvalidInput(_))
+        ));
+    }
+
+    #[test]
+    fn floor_first_searches_the_majority_floor_only() {
+        let map = Arc::new(random_map(21, 90, 15));
+        let m = KnnMatcher::new(map.clone(), KnnConfig::wknn(4, 1.0)).unwrap();
+        let ff = FloorFirstMatcher::new(
+            KnnMatcher::new(map.clone(), KnnConfig::wknn(4, 1.0)).unwrap(),
+            7,
+        )
+        .unwrap();
+        for r in [3, 30, 77] {
+            let row: Vec<f32> = map
+                .filled_row(r)
+                .iter()
+                .map(|&v| if v == -110.0 { 100.0 } else { v - 2.0 })
+                .collect();
+            let q = Query::from_row(&row, &map, &QueryFilter::default()).unwrap();
+            let d = m.distances(&q).unwrap();
+            let mut order: Vec<usize> = (0..90).collect();
+            order.sort_by(|&a, &b| d[a].total_cmp(&d[b]).then(a.cmp(&b)));
+            let floor = majority(order.iter().take(7).map(|&i| map.points[i].floor));
+            let want: Vec<usize> = order
+                .into_iter()
+                .filter(|&i| map.points[i].floor == floor)
+                .take(4)
+                .collect();
+            let obs = ff.locate(&q).unwrap();
+            let got: Vec<usize> = obs.candidates.iter().map(|c| c.index).collect();
+            assert_eq!(got, want);
+            assert_eq!(obs.floor, floor);
+        }
+        assert!(FloorFirstMatcher::new(m, 0).is_err());
     }
 
     #[test]

@@ -48,6 +48,7 @@
 pub mod benchmark;
 pub mod distance;
 pub mod error;
+pub mod interpolate;
 pub mod knn;
 pub mod matcher;
 pub mod query;
@@ -56,7 +57,7 @@ pub mod walk_map;
 
 pub use distance::{Distance, Metric, Representation};
 pub use error::FingerprintError;
-pub use knn::{KnnConfig, KnnMatcher};
+pub use knn::{FloorFirstMatcher, KnnConfig, KnnMatcher};
 pub use matcher::{Matcher, Weighting, majority, observation_from_neighbours, weights_of};
 pub use query::{Query, QueryFilter, QueryStats};
 pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
@@ -67,3 +68,4 @@ pub mod cluster_search;
 pub mod kmeans;
 pub mod med;
 pub mod mixdis;
+pub mod wifi_stats;

@@ -4,7 +4,7 @@
 use crate::{FingerprintError, Query, QueryFilter, RadioMap};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use wipdr_core::{Candidate, Point2, WifiObservation, WifiScan};
+use wipdr_core::{Candidate, MotionState, Point2, WifiObservation, WifiScan};
 
 /// A fingerprint matcher: one online query in, one [`WifiObservation`] out.
 ///
@@ -30,6 +30,29 @@ pub trait Matcher: Send + Sync {
     /// Locates many queries; the default runs [`Matcher::locate`] in parallel with rayon.
     fn locate_batch(&self, queries: &[Query]) -> Vec<Result<WifiObservation, FingerprintError>> {
         queries.par_iter().map(|q| self.locate(q)).collect()
+    }
+
+    /// Locates one query knowing the walker's motion state (paper 002 §3.2.1: the AP index
+    /// uses a stricter RSSI threshold while moving). The default ignores `motion` and calls
+    /// [`Matcher::locate`]; motion-aware matchers override it.
+    fn locate_with_motion(
+        &self,
+        query: &Query,
+        motion: &MotionState,
+    ) -> Result<WifiObservation, FingerprintError> {
+        let _ = motion;
+        self.locate(query)
+    }
+
+    /// Filters a scan against the map and locates it with [`Matcher::locate_with_motion`].
+    fn locate_scan_with_motion(
+        &self,
+        scan: &WifiScan,
+        filter: &QueryFilter,
+        motion: &MotionState,
+    ) -> Result<WifiObservation, FingerprintError> {
+        let q = Query::from_scan(scan, self.map(), filter)?;
+        self.locate_with_motion(&q, motion)
     }
 
     /// Filters a scan against the map and locates it.

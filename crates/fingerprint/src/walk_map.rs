@@ -7,8 +7,19 @@
 //! relative to its scan is [`WalkMapConfig::max_entry_age_ms`] (findings.md: 5-10 s beats
 //! 2 s; default 5 s). Labels are taken at the scan time by default (findings.md: labelling at
 //! the entries' last-seen time is worse). Everything dropped is counted in [`WalkMapReport`].
+//!
+//! [`WalkMapConfig::interpolation`] (off by default) densifies the map (paper 004 §5.3, see
+//! [`crate::interpolate`]): fingerprints between consecutive scans of each training walk, at
+//! the walk's waypoint-interpolated position, and kernel interpolation onto a lattice near the
+//! measured points. Interpolated reference points have `scans = 0` and come after the measured
+//! ones. With [`WalkMapConfig::grid_cell_m`] the lattice interpolates the cell means, and the
+//! along-walk points are added as points of their own (never averaged into cells).
 
 use crate::FingerprintError;
+use crate::interpolate::{
+    InterpolationConfig, InterpolationReport, WalkScan, along_walk, densify_spatially,
+    push_interpolated,
+};
 use crate::radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, is_valid_rssi};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -46,6 +57,11 @@ pub struct WalkMapConfig {
     pub floor: Option<i32>,
     /// The map's settings ("not heard" value).
     pub radio: RadioMapConfig,
+    /// Radio-map interpolation (paper 004 §5.3); `None` (default) = the measured points only.
+    /// In TOML: `[radio_map.interpolation.along_walk]` and/or
+    /// `[radio_map.interpolation.spatial]`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interpolation: Option<InterpolationConfig>,
 }
 
 impl Default for WalkMapConfig {
@@ -58,6 +74,7 @@ impl Default for WalkMapConfig {
             grid_cell_m: None,
             floor: None,
             radio: RadioMapConfig::default(),
+            interpolation: None,
         }
     }
 }
@@ -81,11 +98,15 @@ pub struct WalkMapReport {
     pub entries_invalid: usize,
     /// Duplicate entries of one BSSID in a scan (the most recent kept).
     pub entries_duplicate: usize,
-    /// Reference points in the map.
+    /// Reference points in the map (measured and interpolated).
     pub reference_points: usize,
+    /// What interpolation made and skipped (all zero when it is off).
+    pub interpolation: InterpolationReport,
 }
 
 struct Fingerprint {
+    walk: usize,
+    t: TimestampMs,
     position: Point2,
     entries: Vec<(Bssid, f32)>,
 }
@@ -105,9 +126,13 @@ where
             "grid_cell_m must be positive, got {c}"
         )));
     }
+    if let Some(i) = &config.interpolation {
+        i.validate()?;
+    }
     let mut report = WalkMapReport::default();
     let mut prints: Vec<Fingerprint> = Vec::new();
-    for walk in walks {
+    let walks: Vec<&Walk> = walks.into_iter().collect();
+    for (walk_index, walk) in walks.iter().enumerate() {
         report.walks += 1;
         for scan in &walk.wifi {
             report.scans += 1;
@@ -148,7 +173,12 @@ where
                 }
             };
             report.scans_used += 1;
-            prints.push(Fingerprint { position, entries });
+            prints.push(Fingerprint {
+                walk: walk_index,
+                t,
+                position,
+                entries,
+            });
         }
     }
     let bssids: BTreeSet<Bssid> = prints
@@ -225,9 +255,56 @@ where
             }
         }
     }
+    if let Some(interp) = &config.interpolation {
+        // Spatial first: its sources are the measured points only.
+        if let Some(sp) = &interp.spatial {
+            report.interpolation = densify_spatially(&mut map, sp)?;
+        }
+        if let Some(aw) = &interp.along_walk {
+            let mut by_walk: Vec<Vec<usize>> = vec![Vec::new(); walks.len()];
+            for (i, f) in prints.iter().enumerate() {
+                by_walk[f.walk].push(i);
+            }
+            for (w, members) in by_walk.iter_mut().enumerate() {
+                members.sort_by_key(|&i| prints[i].t);
+                let scans: Vec<WalkScan> = members
+                    .iter()
+                    .map(|&i| WalkScan {
+                        t: prints[i].t,
+                        print: sparse_print(&prints[i], &map),
+                    })
+                    .collect();
+                let waypoints = &walks[w].waypoints;
+                let made = along_walk(
+                    &scans,
+                    |t| interpolate_waypoints(waypoints, t),
+                    aw,
+                    &mut report.interpolation,
+                )?;
+                push_interpolated(&mut map, &made, |_| {
+                    point(Point2::origin(), 0, config.floor)
+                })?;
+            }
+        }
+    }
     report.reference_points = map.len();
     tracing::info!(?report, "radio map built from walks");
     Ok((map, report))
+}
+
+/// A scan's fingerprint over the map's columns, sorted by column.
+fn sparse_print(f: &Fingerprint, map: &RadioMap) -> crate::interpolate::SparsePrint {
+    let mut rss: Vec<(usize, f32)> = f
+        .entries
+        .iter()
+        .filter_map(|&(b, r)| map.vocabulary.column_of_bssid(b).map(|j| (j, r)))
+        .collect();
+    rss.sort_unstable_by_key(|e| e.0);
+    rss.dedup_by_key(|e| e.0);
+    crate::interpolate::SparsePrint {
+        position: f.position,
+        rss,
+    }
 }
 
 fn point(position: Point2, scans: u32, floor: Option<i32>) -> ReferencePoint {
@@ -323,5 +400,101 @@ mod tests {
             ..Default::default()
         };
         assert!(build_from_walks([&w], &bad).is_err());
+    }
+
+    #[test]
+    fn interpolation_adds_marked_points() {
+        use crate::interpolate::{AlongWalkConfig, SpatialConfig};
+        let mut w = walk();
+        w.wifi = vec![
+            WifiScan {
+                t: 2_000,
+                entries: vec![entry(1, -50.0, 2_000), entry(2, -80.0, 2_000)],
+            },
+            WifiScan {
+                t: 6_000,
+                entries: vec![entry(1, -70.0, 6_000), entry(3, -60.0, 6_000)],
+            },
+        ];
+        let along = WalkMapConfig {
+            interpolation: Some(InterpolationConfig {
+                along_walk: Some(AlongWalkConfig {
+                    min_shared_aps: 1,
+                    ..Default::default()
+                }),
+                spatial: None,
+            }),
+            floor: Some(4),
+            ..Default::default()
+        };
+        let (map, rep) = build_from_walks([&w], &along).unwrap();
+        // Scans at x = 2 and x = 6: points at x = 3, 4, 5 with AP 1 only.
+        assert_eq!(map.len(), 5);
+        assert_eq!(rep.reference_points, 5);
+        assert_eq!(rep.interpolation.along_walk_points, 3);
+        let col = map.vocabulary.column_of_bssid(Bssid(1)).unwrap();
+        for (i, x) in [(2, 3.0), (3, 4.0), (4, 5.0)] {
+            let p = map.points[i];
+            assert_eq!(p.scans, 0);
+            assert_eq!(p.floor, Some(4));
+            assert!((p.position.x - x).abs() < 1e-9);
+            let want = -50.0 - 20.0 * (x as f32 - 2.0) / 4.0;
+            assert!((map.rss(i, col).unwrap() - want).abs() < 1e-4);
+            assert_eq!(map.heard(i).count(), 1);
+        }
+        assert!(map.points[..2].iter().all(|p| p.scans == 1));
+
+        let spatial = WalkMapConfig {
+            interpolation: Some(InterpolationConfig {
+                along_walk: None,
+                spatial: Some(SpatialConfig {
+                    cell_m: 1.0,
+                    radius_m: 2.5,
+                    min_sources: 2,
+                    ..Default::default()
+                }),
+            }),
+            ..Default::default()
+        };
+        let (map, rep) = build_from_walks([&w], &spatial).unwrap();
+        assert_eq!(rep.interpolation.spatial_points, map.len() - 2);
+        assert!(map.len() > 2);
+        for p in &map.points[2..] {
+            assert_eq!(p.scans, 0);
+            let near = [2.0, 6.0]
+                .iter()
+                .map(|&x| (p.position - Point2::new(x, 0.0)).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(near <= 2.5);
+        }
+        let bad = WalkMapConfig {
+            interpolation: Some(InterpolationConfig {
+                along_walk: Some(AlongWalkConfig {
+                    max_gap_m: -1.0,
+                    ..Default::default()
+                }),
+                spatial: None,
+            }),
+            ..Default::default()
+        };
+        assert!(build_from_walks([&w], &bad).is_err());
+    }
+
+    #[test]
+    fn interpolation_is_off_and_unserialised_by_default() {
+        let cfg: WalkMapConfig = serde_json::from_str("{}").unwrap();
+        assert_eq!(cfg.interpolation, None);
+        let json = serde_json::to_string(&WalkMapConfig::default()).unwrap();
+        assert!(!json.contains("interpolation"), "{json}");
+        let on: WalkMapConfig = serde_json::from_str(
+            r#"{"interpolation": {"spatial": {"radius_m": 3.0, "kernel": {"kind": "inverse_distance", "power": 2.0}}}}"#,
+        )
+        .unwrap();
+        let sp = on.interpolation.unwrap().spatial.unwrap();
+        assert_eq!(sp.radius_m, 3.0);
+        assert_eq!(sp.cell_m, 2.0);
+        assert!(
+            serde_json::from_str::<WalkMapConfig>(r#"{"interpolation": {"spatail": {}}}"#).is_err()
+        );
     }
 }

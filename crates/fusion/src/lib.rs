@@ -19,6 +19,9 @@
 //! | `pf` | particle filter, DR state, Wi-Fi-minus-DR observation | 004 eq. 12-17 |
 //! | `apf` | `pf` + floor-plan walls + adaptive weight | 004 eq. 18-20, §4.3.3 |
 //! | `rof` | robust offset: PDR placed by the geometric median of recent Wi-Fi offsets | wipdr's own baseline, not from the papers |
+//! | `pmf` | point-mass filter over the PDR track's placement with walkable space and coverage-aware Wi-Fi | wipdr's own, not from the papers |
+//!
+//! Any scheme's output can be map-matched onto walkable space ([`MapMatched`], paper 004 §4).
 //!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free
@@ -56,10 +59,12 @@ pub mod baseline;
 pub mod ekf;
 pub mod kalman;
 pub mod particle;
+pub mod point_mass;
 pub mod resample;
 pub mod robust_offset;
 pub mod synthetic;
 pub mod tcpf;
+pub mod walkable;
 pub mod walls;
 
 use std::sync::Arc;
@@ -73,8 +78,10 @@ pub use baseline::{PdrOnly, PdrOnlyConfig, WifiOnly, WifiOnlyConfig};
 pub use ekf::{Adaptation, EkfConfig, ErrorStateEkf, RobustConfig, RobustMode, Scenario};
 pub use kalman::Innovation;
 pub use particle::{ParticleFilter, PfConfig, WeightedPoint};
+pub use point_mass::{PointMassConfig, PointMassFilter};
 pub use robust_offset::{RobustOffset, RobustOffsetConfig};
 pub use tcpf::{Tcpf, TcpfConfig, TrustState};
+pub use walkable::{MapMatched, WalkableGrid};
 pub use walls::WallIndex;
 
 /// Errors of the fusion crate.
@@ -179,6 +186,11 @@ pub struct BuildContext {
     pub seed: u64,
     /// Start position for baselines (`pdr`) or a known start; otherwise the first Wi-Fi fix.
     pub start: Option<Point2>,
+    /// Walkable space of the floor plan (for `pmf`); build once per floor and share.
+    pub walkable: Option<Arc<WalkableGrid>>,
+    /// Positions of the radio map's reference points (training data), for coverage-aware
+    /// schemes (`pmf`).
+    pub coverage: Option<Arc<Vec<Point2>>>,
 }
 
 impl BuildContext {
@@ -221,10 +233,13 @@ pub enum SchemeConfig {
     /// Robust offset fusion: wipdr's own baseline, not from the papers
     /// ([`robust_offset`]).
     Rof(RobustOffsetConfig),
+    /// Point-mass filter with walkable space: wipdr's own, not from the papers
+    /// ([`point_mass`]).
+    Pmf(PointMassConfig),
 }
 
-const SCHEME_NAMES: [&str; 12] = [
-    "wifi", "pdr", "ekf", "aekf", "akf", "rkf", "arkf", "aws", "tcpf", "pf", "apf", "rof",
+const SCHEME_NAMES: [&str; 13] = [
+    "wifi", "pdr", "ekf", "aekf", "akf", "rkf", "arkf", "aws", "tcpf", "pf", "apf", "rof", "pmf",
 ];
 
 /// Names of every scheme, in the order of the issue table.
@@ -248,6 +263,7 @@ impl SchemeConfig {
             "pf" => Self::Pf(PfConfig::default()),
             "apf" => Self::Apf(PfConfig::default()),
             "rof" => Self::Rof(RobustOffsetConfig::default()),
+            "pmf" => Self::Pmf(PointMassConfig::default()),
             other => return Err(FusionError::UnknownScheme(other.to_string())),
         })
     }
@@ -267,6 +283,7 @@ impl SchemeConfig {
             Self::Pf(_) => "pf",
             Self::Apf(_) => "apf",
             Self::Rof(_) => "rof",
+            Self::Pmf(_) => "pmf",
         }
     }
 
@@ -336,6 +353,17 @@ impl SchemeConfig {
             Self::Rof(c) => {
                 c.validate()?;
                 Box::new(RobustOffset::new(c.clone()))
+            }
+            Self::Pmf(c) => {
+                if ctx.walkable.is_none() {
+                    tracing::warn!("pmf built without a floor plan: no walkability");
+                }
+                Box::new(PointMassFilter::new(
+                    c.clone(),
+                    ctx.walkable.clone(),
+                    ctx.coverage.clone(),
+                    ctx.start,
+                )?)
             }
         })
     }

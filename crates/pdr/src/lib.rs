@@ -41,6 +41,7 @@
 pub mod attitude;
 pub mod calibrate;
 pub mod detector;
+pub mod error_model;
 pub mod filter;
 pub mod length;
 pub mod motion;

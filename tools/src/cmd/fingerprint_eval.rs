@@ -8,12 +8,14 @@
 //!
 //! Matcher names: `nn`, `knn`, `wknn` (1/d), `wknn2` (1/d^2), each optionally with settings
 //! `NAME:k=13,metric=sorensen,rep=powed,w=1` (metric: manhattan, euclidean, sqeuclidean,
-//! sorensen, neyman, plgd, shared_ap; rep: raw, positive, exponential, powed; w: exponent of
-//! 1/d^w, 0 = uniform); `tuned-cv` picks the literature k-NN configuration by
-//! cross-validation on train.csv (honest), `tuned-test` picks it on test.csv (as the papers
-//! did: optimistic, labelled so).
-//! `apc` (cluster search, paper 001 §2.3), `apindex` (AP-matching index, paper 002 eq. 6) and
-//! `med` (single-scan form of paper 004 eq. 11) run with their default settings.
+//! sorensen, neyman, neyman_query, plgd, shared_ap; rep: raw, positive, exponential, powed,
+//! exponential_null0; w: exponent of 1/d^w, 0 = uniform); `tuned-cv` picks the literature
+//! k-NN configuration by cross-validation on train.csv (honest), `tuned-test` picks it on
+//! test.csv (as the papers did: optimistic, labelled so); `--tune-by 2d`,
+//! `--tune-floor-first V` and `--tune-code-variants` change the criterion, the matching and
+//! the grid. `apc` (cluster search, paper 001 §2.3), `apindex` (AP-matching index, paper 002
+//! eq. 6) and `med` (single-scan form of paper 004 eq. 11) take `NAME:key=value,...` settings
+//! (`wipdr_fingerprint::cluster_search::apply_spec`).
 
 use anyhow::{Context, bail};
 use std::path::PathBuf;
@@ -23,8 +25,8 @@ use wipdr_fingerprint::cluster_search::{
     ClusteringMatchersConfig, build_matcher, is_clustering_matcher,
 };
 use wipdr_fingerprint::{
-    KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap, RadioMapConfig,
-    Representation, Weighting,
+    FloorFirstMatcher, KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap,
+    RadioMapConfig, Representation, Weighting,
 };
 use wipdr_io::fingerprint_csv::read_dataset;
 
@@ -55,6 +57,20 @@ pub struct Args {
     /// Largest k of the tuning grid.
     #[arg(long, default_value_t = 15)]
     pub tune_k_max: usize,
+    /// Selection criterion of `tuned-cv` / `tuned-test`: mean `3d` error (default) or mean `2d`
+    /// error (the criterion of papers that report 2D error).
+    #[arg(long, default_value = "3d", value_parser = ["2d", "3d"])]
+    pub tune_by: String,
+    /// Tuning with floor-first matching: the floor by majority of this many nearest
+    /// neighbours, then the k nearest on that floor only.
+    #[arg(long)]
+    pub tune_floor_first: Option<usize>,
+    /// Add to the tuning grid the variants of the reference code of Montoliu, Pérez-Navarro,
+    /// Torres-Sospedra (2022): Neyman divided by the query's value over the query's APs
+    /// (`neyman_query`) and the exponential representation with not heard = 0
+    /// (`exponential_null0`).
+    #[arg(long)]
+    pub tune_code_variants: bool,
     /// Batch Euclidean queries through one matrix product (faer) instead of the sparse engine.
     #[arg(long)]
     pub gemm: bool,
@@ -199,10 +215,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (cfg, selection) = match parse_spec(spec, args.k)? {
                 Some(cfg) => (cfg, "fixed".to_string()),
                 None => {
-                    let grid = Grid {
+                    let mut grid = Grid {
                         k_max: args.tune_k_max,
+                        floor_votes: args.tune_floor_first,
                         ..Grid::default()
                     };
+                    if args.tune_code_variants {
+                        grid.metrics.push(Metric::NeymanQuery);
+                        grid.representations
+                            .push(Representation::ExponentialNullZero { alpha: 24.0 });
+                    }
                     let points = if spec == "tuned-cv" {
                         benchmark::grid_cross_validated(
                             &map,
@@ -213,20 +235,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     } else {
                         benchmark::grid_on_test(&map, &queries, &truth, &grid)?
                     };
-                    let best = benchmark::best(&points).context("empty tuning grid")?;
-                    let how = if spec == "tuned-cv" {
+                    let best = if args.tune_by == "2d" {
+                        benchmark::best_2d(&points)
+                    } else {
+                        benchmark::best(&points)
+                    }
+                    .context("empty tuning grid")?;
+                    let mut how = if spec == "tuned-cv" {
                         format!(
-                            "{}-fold CV on train.csv (cv mean_3d {:.2})",
-                            args.folds, best.mean_3d
+                            "{}-fold CV on train.csv (cv mean_{} {:.2})",
+                            args.folds,
+                            args.tune_by,
+                            if args.tune_by == "2d" {
+                                best.mean_2d
+                            } else {
+                                best.mean_3d
+                            }
                         )
                     } else {
-                        "chosen on test.csv (optimistic)".to_string()
+                        format!(
+                            "chosen on test.csv by mean {} (optimistic): {:.3} 2D / {:.3} 3D",
+                            args.tune_by, best.mean_2d, best.mean_3d
+                        )
                     };
+                    if let Some(v) = args.tune_floor_first {
+                        how += &format!("; floor-first (floor of the {v} nearest)");
+                    }
                     (best.config, how)
                 }
             };
             let matcher = KnnMatcher::new(map.clone(), cfg)?;
-            let (score, qps) = if args.gemm {
+            let tuned = matches!(spec.as_str(), "tuned-cv" | "tuned-test");
+            let floor_first = match args.tune_floor_first {
+                Some(v) if tuned => Some(FloorFirstMatcher::new(
+                    KnnMatcher::new(map.clone(), cfg)?,
+                    v,
+                )?),
+                _ => None,
+            };
+            let (score, qps) = if let Some(ff) = &floor_first {
+                benchmark::evaluate(ff, &queries, &truth)
+            } else if args.gemm {
                 let start = std::time::Instant::now();
                 let results = matcher.locate_batch_gemm(&queries);
                 let secs = start.elapsed().as_secs_f64();
@@ -240,7 +289,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             rows.push(Row {
                 dataset: name.clone(),
                 matcher: spec.clone(),
-                config: matcher.name(),
+                config: floor_first
+                    .as_ref()
+                    .map_or_else(|| matcher.name(), |ff| ff.name()),
                 selection,
                 mean_2d: score.error_2d.mean,
                 mean_3d: score.mean_3d,

@@ -3,7 +3,9 @@
 
 use crate::{data, progress};
 use anyhow::{Context, Result, bail};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
 
 /// Arguments of `wipdr sweep`.
@@ -61,6 +63,36 @@ fn parse_shard(s: &str) -> Result<(usize, usize)> {
     Ok((i, n))
 }
 
+/// The command line that continues a stopped sweep: this one, with `--resume` added.
+fn resume_command(spec: &Path, out: &Path) -> String {
+    let args: Vec<String> = std::env::args().collect();
+    if args.is_empty() {
+        return format!(
+            "wipdr sweep --config {} --data ... --out {} --resume",
+            spec.display(),
+            out.display()
+        );
+    }
+    let mut line: Vec<String> = args.iter().map(|a| shell_quote(a)).collect();
+    if !args.iter().any(|a| a == "--resume") {
+        line.push("--resume".into());
+    }
+    line.join(" ")
+}
+
+/// Quotes a word for a POSIX shell when it needs it.
+fn shell_quote(word: &str) -> String {
+    let plain = !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,@+%".contains(c));
+    if plain {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     if let Some(Sub::Merge { out, shards }) = args.merge {
@@ -86,10 +118,28 @@ pub fn run(args: Args) -> Result<()> {
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
     let total = spec.expand()?.len();
     let floors = data::load_floors(&args.data)?;
+    // Ctrl-C: stop starting new configs; the running ones finish and are written.
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                // A second Ctrl-C: leave at once. Every finished row is already flushed.
+                eprintln!("\nsecond Ctrl-C: exiting now (finished configs are in the file)");
+                std::process::exit(130);
+            }
+            eprintln!(
+                "\nCtrl-C: no new configs will start; waiting for the running ones to finish \
+                 (Ctrl-C again to exit at once)"
+            );
+        })
+        .context("installing the Ctrl-C handler")?;
+    }
     let options = SweepOptions {
         resume: args.resume,
         shard,
         max_configs: args.max_configs,
+        stop: Some(stop),
     };
     let pb = progress::bar(total as u64, "configs");
     let started = std::time::Instant::now();
@@ -107,6 +157,16 @@ pub fn run(args: Args) -> Result<()> {
             " (incomplete: run again with --resume)"
         }
     );
+    if outcome.stopped {
+        eprintln!(
+            "\nstopped by Ctrl-C: {} of {} configs are in {}. To continue:\n  {}",
+            outcome.rows.len(),
+            total,
+            out.display(),
+            resume_command(&spec_path, &out)
+        );
+        std::process::exit(130);
+    }
     let mut best: Vec<&sweep::SweepRow> = outcome.rows.iter().collect();
     best.sort_by(|a, b| a.objective.total_cmp(&b.objective));
     println!("\nbest by {:?} ({}):", spec.objective, spec.scheme);

@@ -1,0 +1,56 @@
+//! Real walks against the floor plans' walkable space: how often the truth lies in walkable
+//! space, inside a unit, or outside the outline (what the walkability likelihood of `pmf` and
+//! map matching may assume). Skips with a reason when `../shared/data` is absent.
+
+use std::path::PathBuf;
+use wipdr_fusion::walkable::{CellClass, WalkableGrid};
+use wipdr_io::cache::{DEFAULT_CACHE_DIR, read_floor_dir_cached};
+use wipdr_io::floor::ReadOptions;
+
+#[test]
+fn truth_is_mostly_walkable_on_the_real_floors() {
+    let root = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ilc20"
+    ));
+    if !root.is_dir() {
+        println!("skipped: {} not found", root.display());
+        return;
+    }
+    let cache =
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
+    for floor in ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"] {
+        let data =
+            read_floor_dir_cached(root.join(floor), &cache, &ReadOptions::default()).unwrap();
+        let grid = WalkableGrid::new(&data.plan, 0.5).unwrap();
+        let (mut counts, mut total) = ([0usize; 3], 0usize);
+        let mut exact_walkable = 0usize;
+        for w in &data.walks {
+            let wp = &w.walk.waypoints;
+            for pair in wp.windows(2) {
+                let (a, b) = (pair[0], pair[1]);
+                let n = ((b.position - a.position).norm() / 0.5).ceil().max(1.0) as usize;
+                for k in 0..n {
+                    let f = k as f64 / n as f64;
+                    let p = a.position + (b.position - a.position) * f;
+                    counts[grid.class_at(p) as usize] += 1;
+                    exact_walkable += usize::from(grid.is_walkable(p));
+                    total += 1;
+                }
+            }
+        }
+        let share = |c: CellClass| counts[c as usize] as f64 / total as f64;
+        println!(
+            "{floor}: {total} truth points every 0.5 m; walkable {:.3} (exact {:.3}), unit {:.3}, outside {:.3}; walkable cells {:.3}",
+            share(CellClass::Walkable),
+            exact_walkable as f64 / total as f64,
+            share(CellClass::Unit),
+            share(CellClass::Outside),
+            grid.walkable_fraction()
+        );
+        assert!(
+            share(CellClass::Walkable) > 0.8,
+            "{floor}: truth mostly walkable"
+        );
+    }
+}

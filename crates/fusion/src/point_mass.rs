@@ -1,0 +1,688 @@
+//! `pmf` — a point-mass (grid) filter over the PDR track's placement, with floor-plan
+//! walkability and coverage-aware Wi-Fi: **wipdr's own scheme, not from the four papers**
+//! (it combines their ingredients: PDR shape, Wi-Fi fixes with gross errors, walls of
+//! paper 004 §4.3.3, the "start that waits for consistent evidence" of the project's findings).
+//!
+//! # The model
+//!
+//! PDR gives the track's shape `D(t)` (the summed step displacements) well; what is unknown
+//! is where it sits: the position is `x(t) = o(t) + D(t)` with an offset `o` that is constant
+//! up to slow PDR drift. The filter keeps a probability for every offset on a square lattice
+//! (`cell_m`) covering the floor plan plus a margin, so every start the plan allows is a
+//! hypothesis from the beginning: nothing has to be guessed from the first fix.
+//!
+//! - **Step** (prediction and the walls): the offset diffuses by `drift_m2_per_step` (a
+//!   binomial blur whenever the accumulated variance reaches half a cell², so the drift of
+//!   the PDR heading and length is absorbed); then each hypothesis is weighted by where its
+//!   position `o + D` now lies: 1 in walkable space, `unit_likelihood` inside a unit (a shop:
+//!   walkers rarely enter them, and the plan's units are approximate), `outside_likelihood`
+//!   outside the floor outline. A track shape that only fits the corridors in few places
+//!   pins the offset down after a few turns, even with no usable Wi-Fi at all.
+//! - **Wi-Fi fix** `f`: each hypothesis is weighted by a robust likelihood of the fix given
+//!   its position `x = o + D`: `exp(-|f - x|² / 2 sd²) + outlier` — Gaussian with a floor,
+//!   so a gross fix cannot kill the right hypothesis. Coverage-aware (optional): where `x` is
+//!   farther than `gap_distance_m` from every reference point of the radio map (training
+//!   data), the matcher can only answer some covered place near the walker, so the
+//!   likelihood there is a wide Gaussian (`gap_sd_m`) of peak `gap_likelihood` instead.
+//! - A floor `recovery` (relative to a uniform spread) is mixed in after each update, so a
+//!   hypothesis killed by a long stay in a shop can come back.
+//!
+//! The estimate is the posterior mean of `o + D` over the cells within `estimate_radius_m` of
+//! the most probable cell (the mean of the dominant mode; a plain mean would sit between two
+//! modes). It is reported from the first Wi-Fi fix on, as for the other schemes (or from a
+//! given start, which collapses the prior there).
+//!
+//! Work per input is proportional to the *active* cells (those above the floor), which
+//! shrink to a few hundred once the filter has converged.
+//!
+//! ```
+//! use wipdr_core::{MotionState, Point2, StepEvent, WifiObservation};
+//! use wipdr_fusion::{Fuser, point_mass::{PointMassConfig, PointMassFilter}};
+//! let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+//! let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
+//!     candidates: vec![], visited: 0, floor: None, building: None };
+//! f.on_wifi(&fix(0, 10.0, 10.0));
+//! for k in 1..=10 {
+//!     f.on_step(&StepEvent { t: 500 * k, length: 0.7, heading: 0.0, heading_change: 0.0,
+//!         period_s: 0.5, motion: MotionState::default() });
+//! }
+//! f.on_wifi(&fix(6000, 10.0, 17.0));
+//! let p = f.estimate().unwrap().position;
+//! assert!((p.x - 10.0).abs() < 1.0 && (p.y - 17.0).abs() < 1.5, "{p:?}");
+//! ```
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
+
+use crate::walkable::{CellClass, WalkableGrid};
+use crate::{Estimate, Fuser, FusionError, InputGuard};
+
+/// Config of `pmf`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PointMassConfig {
+    /// Lattice spacing of the offset hypotheses, metres.
+    pub cell_m: f64,
+    /// Margin around the floor plan (or, without a plan, half-width of the lattice around
+    /// the first fix), metres.
+    pub margin_m: f64,
+    /// Variance added to the offset per step (PDR drift), m².
+    pub drift_m2_per_step: f64,
+    /// Weight of a hypothesis whose position is inside a unit, per step.
+    pub unit_likelihood: f64,
+    /// Weight of a hypothesis whose position is outside the floor outline, per step.
+    pub outside_likelihood: f64,
+    /// Standard deviation of a good Wi-Fi fix, metres.
+    pub wifi_sd_m: f64,
+    /// Outlier floor of the Wi-Fi likelihood (relative to its peak of 1).
+    pub wifi_outlier: f64,
+    /// Distance from the nearest reference point beyond which a position counts as a
+    /// coverage gap, metres (0: no coverage awareness).
+    pub gap_distance_m: f64,
+    /// Peak Wi-Fi likelihood of a hypothesis in a coverage gap (relative to a peak of 1 in
+    /// covered space): a fix there lands at some covered place near the walker, so the
+    /// likelihood is a wide Gaussian of standard deviation `gap_sd_m` (plus the outlier floor).
+    pub gap_likelihood: f64,
+    /// Standard deviation of the fix about a walker in a coverage gap, metres.
+    pub gap_sd_m: f64,
+    /// Recovery floor after each update, as a share of the uniform probability.
+    pub recovery: f64,
+    /// Radius around the most probable cell over which the estimate is averaged, metres
+    /// (0: the whole posterior).
+    pub estimate_radius_m: f64,
+    /// Half-width of the square over which a mode's probability is summed, metres.
+    pub mode_radius_m: f64,
+    /// Keep the previous mode while it holds at least this share of the best mode's mass.
+    pub mode_hysteresis: f64,
+    /// Multiplies every step length (1 = as PDR reports).
+    pub step_scale: f64,
+}
+
+impl Default for PointMassConfig {
+    fn default() -> Self {
+        Self {
+            cell_m: 1.0,
+            margin_m: 10.0,
+            drift_m2_per_step: 0.02,
+            unit_likelihood: 0.5,
+            outside_likelihood: 0.1,
+            wifi_sd_m: 6.0,
+            wifi_outlier: 0.05,
+            gap_distance_m: 0.0,
+            gap_likelihood: 0.5,
+            gap_sd_m: 25.0,
+            recovery: 1e-6,
+            estimate_radius_m: 10.0,
+            mode_radius_m: 5.0,
+            mode_hysteresis: 0.5,
+            step_scale: 1.0,
+        }
+    }
+}
+
+impl PointMassConfig {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), FusionError> {
+        let positive = [
+            ("cell_m", self.cell_m),
+            ("wifi_sd_m", self.wifi_sd_m),
+            ("gap_sd_m", self.gap_sd_m),
+            ("step_scale", self.step_scale),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be finite and > 0, got {v}"),
+                });
+            }
+        }
+        let non_negative = [
+            ("margin_m", self.margin_m),
+            ("drift_m2_per_step", self.drift_m2_per_step),
+            ("wifi_outlier", self.wifi_outlier),
+            ("gap_distance_m", self.gap_distance_m),
+            ("recovery", self.recovery),
+            ("estimate_radius_m", self.estimate_radius_m),
+            ("mode_radius_m", self.mode_radius_m),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be finite and >= 0, got {v}"),
+                });
+            }
+        }
+        let probabilities = [
+            ("unit_likelihood", self.unit_likelihood),
+            ("outside_likelihood", self.outside_likelihood),
+            ("gap_likelihood", self.gap_likelihood),
+            ("mode_hysteresis", self.mode_hysteresis),
+        ];
+        for (field, v) in probabilities {
+            if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be in (0, 1], got {v}"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Most cells the lattice may have.
+pub const MAX_CELLS: usize = 4 << 20;
+
+/// The point-mass filter; see the [module docs](self).
+#[derive(Debug)]
+pub struct PointMassFilter {
+    cfg: PointMassConfig,
+    walkable: Option<Arc<WalkableGrid>>,
+    coverage: Option<Arc<Vec<Point2>>>,
+    /// Lattice: lower-left corner of cell (0, 0), columns, rows.
+    origin: Point2,
+    nx: usize,
+    ny: usize,
+    prob: Vec<f64>,
+    scratch: Vec<f64>,
+    /// Distance class of positions: whether each position cell (same lattice, positions
+    /// rather than offsets, over the coverage extent) is in a gap. Built lazily.
+    gap: Option<GapRaster>,
+    /// Active window (inclusive cell ranges) outside which every cell is at the floor.
+    active: (usize, usize, usize, usize),
+    floor: f64,
+    bg: f64,
+    sat: Vec<f64>,
+    mode: Option<usize>,
+    pdr: Vector2,
+    pending_drift: f64,
+    initialised: bool,
+    reporting: bool,
+    t: TimestampMs,
+    guard: InputGuard,
+}
+
+#[derive(Debug)]
+struct GapRaster {
+    origin: Point2,
+    cell_m: f64,
+    nx: usize,
+    ny: usize,
+    gap: Vec<bool>,
+}
+
+impl GapRaster {
+    /// Cells farther than `distance` from every point (BFS over the 8-neighbourhood with
+    /// nearest-seed propagation), over the points' extent plus `margin`.
+    fn new(
+        points: &[Point2],
+        cell_m: f64,
+        distance: f64,
+        extent: (Point2, Point2),
+    ) -> Option<Self> {
+        let (lo, hi) = extent;
+        let nx = ((hi.x - lo.x) / cell_m).ceil() as usize + 1;
+        let ny = ((hi.y - lo.y) / cell_m).ceil() as usize + 1;
+        if nx.saturating_mul(ny) > MAX_CELLS || points.is_empty() {
+            return None;
+        }
+        let mut seed = vec![u32::MAX; nx * ny];
+        let mut queue = VecDeque::new();
+        let seeds: Vec<Point2> = points.to_vec();
+        for (k, p) in seeds.iter().enumerate() {
+            let cx = ((p.x - lo.x) / cell_m).floor();
+            let cy = ((p.y - lo.y) / cell_m).floor();
+            if cx >= 0.0 && cy >= 0.0 && (cx as usize) < nx && (cy as usize) < ny {
+                let i = cy as usize * nx + cx as usize;
+                if seed[i] == u32::MAX {
+                    seed[i] = k as u32;
+                    queue.push_back(i);
+                }
+            }
+        }
+        let centre = |i: usize| {
+            Point2::new(
+                lo.x + ((i % nx) as f64 + 0.5) * cell_m,
+                lo.y + ((i / nx) as f64 + 0.5) * cell_m,
+            )
+        };
+        while let Some(i) = queue.pop_front() {
+            let s = seeds[seed[i] as usize];
+            let (row, col) = ((i / nx) as i64, (i % nx) as i64);
+            for dr in -1..=1i64 {
+                for dc in -1..=1i64 {
+                    let (r, c) = (row + dr, col + dc);
+                    if r < 0 || c < 0 || r >= ny as i64 || c >= nx as i64 {
+                        continue;
+                    }
+                    let j = r as usize * nx + c as usize;
+                    let cj = centre(j);
+                    let better = seed[j] == u32::MAX
+                        || (cj - s).norm() < (cj - seeds[seed[j] as usize]).norm() - 1e-12;
+                    if better && (cj - s).norm() <= distance + 2.0 * cell_m {
+                        seed[j] = seed[i];
+                        queue.push_back(j);
+                    }
+                }
+            }
+        }
+        let gap = (0..nx * ny)
+            .map(|i| seed[i] == u32::MAX || (centre(i) - seeds[seed[i] as usize]).norm() > distance)
+            .collect();
+        Some(Self {
+            origin: lo,
+            cell_m,
+            nx,
+            ny,
+            gap,
+        })
+    }
+
+    fn is_gap(&self, p: Point2) -> bool {
+        let cx = ((p.x - self.origin.x) / self.cell_m).floor();
+        let cy = ((p.y - self.origin.y) / self.cell_m).floor();
+        if !(cx >= 0.0 && cy >= 0.0 && cx < self.nx as f64 && cy < self.ny as f64) {
+            return true;
+        }
+        self.gap[cy as usize * self.nx + cx as usize]
+    }
+}
+
+impl PointMassFilter {
+    /// Builds `pmf`. With `walkable`, the lattice covers the plan from the start; without, it
+    /// is laid around the first Wi-Fi fix (or `start`). `coverage` (reference-point positions
+    /// of the radio map) turns on coverage awareness when `gap_distance_m > 0`.
+    pub fn new(
+        cfg: PointMassConfig,
+        walkable: Option<Arc<WalkableGrid>>,
+        coverage: Option<Arc<Vec<Point2>>>,
+        start: Option<Point2>,
+    ) -> Result<Self, FusionError> {
+        cfg.validate()?;
+        let mut f = Self {
+            cfg,
+            walkable,
+            coverage,
+            origin: Point2::origin(),
+            nx: 0,
+            ny: 0,
+            prob: Vec::new(),
+            scratch: Vec::new(),
+            gap: None,
+            active: (0, 0, 0, 0),
+            floor: 0.0,
+            bg: 0.0,
+            sat: Vec::new(),
+            mode: None,
+            pdr: Vector2::zeros(),
+            pending_drift: 0.0,
+            initialised: false,
+            reporting: false,
+            t: 0,
+            guard: InputGuard::default(),
+        };
+        if let Some(grid) = f.walkable.clone() {
+            let (nx, ny) = grid.dims();
+            let lo = grid.origin();
+            let hi = Point2::new(
+                lo.x + nx as f64 * grid.cell_m(),
+                lo.y + ny as f64 * grid.cell_m(),
+            );
+            f.lay_lattice(lo, hi)?;
+        }
+        if let Some(s) = start {
+            if !f.initialised {
+                let m = f.cfg.margin_m.max(f.cfg.cell_m);
+                f.lay_lattice(s - Vector2::new(m, m), s + Vector2::new(m, m))?;
+            }
+            f.collapse_at(s);
+            f.reporting = true;
+        }
+        Ok(f)
+    }
+
+    /// Lays a uniform lattice over `[lo, hi]` plus the margin.
+    fn lay_lattice(&mut self, lo: Point2, hi: Point2) -> Result<(), FusionError> {
+        let m = self.cfg.margin_m;
+        let h = self.cfg.cell_m;
+        let lo = lo - Vector2::new(m, m);
+        let hi = hi + Vector2::new(m, m);
+        let nx = ((hi.x - lo.x) / h).ceil().max(1.0);
+        let ny = ((hi.y - lo.y) / h).ceil().max(1.0);
+        if !(nx.is_finite() && ny.is_finite()) || nx * ny > MAX_CELLS as f64 {
+            return Err(FusionError::InvalidConfig {
+                field: "cell_m",
+                reason: format!("a {nx} x {ny} lattice is larger than {MAX_CELLS} cells"),
+            });
+        }
+        self.origin = lo;
+        self.nx = nx as usize;
+        self.ny = ny as usize;
+        let n = self.nx * self.ny;
+        self.prob = vec![1.0 / n as f64; n];
+        self.scratch = vec![0.0; n];
+        self.floor = self.cfg.recovery / n as f64;
+        self.bg = 1.0 / n as f64;
+        self.active = (0, self.nx - 1, 0, self.ny - 1);
+        self.initialised = true;
+        // Offsets are relative to the PDR origin at lay time: the lattice holds positions
+        // `o + D`, so shift by the displacement so far.
+        self.origin -= self.pdr;
+        if let Some(cov) = self.coverage.clone()
+            && self.cfg.gap_distance_m > 0.0
+        {
+            let (plo, phi) = (lo, hi);
+            self.gap = GapRaster::new(&cov, h, self.cfg.gap_distance_m, (plo, phi));
+        }
+        Ok(())
+    }
+
+    fn collapse_at(&mut self, p: Point2) {
+        let o = p.coords - self.pdr;
+        let n = self.prob.len();
+        self.prob.iter_mut().for_each(|v| *v = 0.0);
+        self.bg = 0.0;
+        self.active = (0, self.nx - 1, 0, self.ny - 1);
+        let cx = ((o.x - self.origin.x) / self.cfg.cell_m).floor();
+        let cy = ((o.y - self.origin.y) / self.cfg.cell_m).floor();
+        if cx >= 0.0 && cy >= 0.0 && (cx as usize) < self.nx && (cy as usize) < self.ny {
+            self.prob[cy as usize * self.nx + cx as usize] = 1.0;
+        } else {
+            self.prob.iter_mut().for_each(|v| *v = 1.0 / n as f64);
+            self.bg = 1.0 / n as f64;
+        }
+        self.normalise();
+        self.choose_mode();
+    }
+
+    fn offset_of(&self, i: usize) -> Vector2 {
+        Vector2::new(
+            self.origin.x + ((i % self.nx) as f64 + 0.5) * self.cfg.cell_m,
+            self.origin.y + ((i / self.nx) as f64 + 0.5) * self.cfg.cell_m,
+        )
+    }
+
+    /// Normalises, applies the recovery floor and recomputes the active window. Cells outside
+    /// the window all hold the background probability `bg` (implicitly: their array values
+    /// are rewritten when the window grows over them).
+    fn normalise(&mut self) {
+        let (x0, x1, y0, y1) = self.active;
+        let n = self.prob.len() as f64;
+        let n_active = ((x1 - x0 + 1) * (y1 - y0 + 1)) as f64;
+        let mut sum = self.bg * (n - n_active);
+        for r in y0..=y1 {
+            sum += self.prob[r * self.nx + x0..=r * self.nx + x1]
+                .iter()
+                .sum::<f64>();
+        }
+        let floor = self.floor;
+        let mut max = 0.0f64;
+        if !(sum.is_finite() && sum > 0.0) {
+            max = 0.0;
+        } else {
+            // Background cells exist only outside a partial window.
+            self.bg = if n_active < n {
+                (self.bg / sum).max(floor)
+            } else {
+                floor
+            };
+            for r in y0..=y1 {
+                for v in &mut self.prob[r * self.nx + x0..=r * self.nx + x1] {
+                    *v = (*v / sum).max(floor);
+                    max = max.max(*v);
+                }
+            }
+        }
+        if max <= floor * 1.5 {
+            // Every explicit hypothesis is at the floor: spread uniformly again (recovery).
+            tracing::debug!("pmf: every hypothesis vanished; back to uniform");
+            self.prob.iter_mut().for_each(|v| *v = 1.0 / n);
+            self.bg = 1.0 / n;
+            self.active = (0, self.nx - 1, 0, self.ny - 1);
+            return;
+        }
+        // Re-normalise after the floor, shrink the window to the cells above it.
+        let mut sum2 = self.bg * (n - n_active);
+        for r in y0..=y1 {
+            sum2 += self.prob[r * self.nx + x0..=r * self.nx + x1]
+                .iter()
+                .sum::<f64>();
+        }
+        if n_active < n {
+            self.bg /= sum2;
+        }
+        let threshold = self.bg * 1.5;
+        let (mut a0, mut a1, mut b0, mut b1) = (usize::MAX, 0, usize::MAX, 0);
+        for r in y0..=y1 {
+            for c in x0..=x1 {
+                let v = &mut self.prob[r * self.nx + c];
+                *v /= sum2;
+                if *v > threshold {
+                    a0 = a0.min(c);
+                    a1 = a1.max(c);
+                    b0 = b0.min(r);
+                    b1 = b1.max(r);
+                }
+            }
+        }
+        if a0 != usize::MAX {
+            self.active = (a0, a1, b0, b1);
+        }
+    }
+
+    /// Grows the active window by one cell on each side, filling new cells with `bg`.
+    fn grow(&mut self) {
+        let (x0, x1, y0, y1) = self.active;
+        let (nx, ny) = (self.nx, self.ny);
+        let (a0, a1) = (x0.saturating_sub(1), (x1 + 1).min(nx - 1));
+        let (b0, b1) = (y0.saturating_sub(1), (y1 + 1).min(ny - 1));
+        for r in b0..=b1 {
+            for c in a0..=a1 {
+                if r < y0 || r > y1 || c < x0 || c > x1 {
+                    self.prob[r * nx + c] = self.bg;
+                }
+            }
+        }
+        self.active = (a0, a1, b0, b1);
+    }
+
+    /// Multiplies every active cell by `like(position of the cell)`.
+    fn weigh(&mut self, like: impl Fn(&Self, Point2) -> f64) {
+        let (x0, x1, y0, y1) = self.active;
+        for r in y0..=y1 {
+            for c in x0..=x1 {
+                let i = r * self.nx + c;
+                let pos = Point2::from(self.offset_of(i) + self.pdr);
+                let w = like(self, pos);
+                self.prob[i] *= w;
+            }
+        }
+    }
+
+    /// Binomial blur `[1 2 1] / 4` in x then y over the active window grown by a cell
+    /// (cells beyond the window count as background).
+    fn blur(&mut self) {
+        self.grow();
+        let (x0, x1, y0, y1) = self.active;
+        let nx = self.nx;
+        let bg = self.bg;
+        let p = &self.prob;
+        let s = &mut self.scratch;
+        for r in y0..=y1 {
+            for c in x0..=x1 {
+                let i = r * nx + c;
+                let left = if c > x0 { p[i - 1] } else { bg };
+                let right = if c < x1 { p[i + 1] } else { bg };
+                s[i] = 0.25 * left + 0.5 * p[i] + 0.25 * right;
+            }
+        }
+        let p = &mut self.prob;
+        for r in y0..=y1 {
+            for c in x0..=x1 {
+                let i = r * nx + c;
+                let down = if r > y0 { s[i - nx] } else { bg };
+                let up = if r < y1 { s[i + nx] } else { bg };
+                p[i] = 0.25 * down + 0.5 * s[i] + 0.25 * up;
+            }
+        }
+    }
+
+    /// The cell whose neighbourhood (a square of half-width `mode_radius_m`) holds the most
+    /// probability, over the active window (a summed-area table). The previously chosen cell
+    /// is kept while its neighbourhood holds at least `mode_hysteresis` of the best one, so
+    /// the estimate does not flip between two near-equal modes.
+    fn choose_mode(&mut self) {
+        let (x0, x1, y0, y1) = self.active;
+        let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
+        let sat = &mut self.sat;
+        sat.clear();
+        sat.resize((w + 1) * (h + 1), 0.0);
+        for r in 0..h {
+            let mut row = 0.0;
+            for c in 0..w {
+                row += self.prob[(y0 + r) * self.nx + x0 + c];
+                sat[(r + 1) * (w + 1) + c + 1] = sat[r * (w + 1) + c + 1] + row;
+            }
+        }
+        let k = (self.cfg.mode_radius_m / self.cfg.cell_m).round() as usize;
+        let mass = |sat: &[f64], c: usize, r: usize| {
+            let (a0, a1) = (c.saturating_sub(k), (c + k).min(w - 1) + 1);
+            let (b0, b1) = (r.saturating_sub(k), (r + k).min(h - 1) + 1);
+            sat[b1 * (w + 1) + a1] - sat[b0 * (w + 1) + a1] - sat[b1 * (w + 1) + a0]
+                + sat[b0 * (w + 1) + a0]
+        };
+        let mut best = (0usize, 0usize, f64::NEG_INFINITY);
+        for r in 0..h {
+            for c in 0..w {
+                let m = mass(sat, c, r);
+                if m > best.2 {
+                    best = (c, r, m);
+                }
+            }
+        }
+        let chosen = (y0 + best.1) * self.nx + x0 + best.0;
+        if let Some(prev) = self.mode {
+            let (pc, pr) = (prev % self.nx, prev / self.nx);
+            if pc >= x0 && pc <= x1 && pr >= y0 && pr <= y1 {
+                let m = mass(sat, pc - x0, pr - y0);
+                if m >= self.cfg.mode_hysteresis * best.2 {
+                    // Keep the previous mode's region; re-centre on its local peak.
+                    return;
+                }
+            }
+        }
+        self.mode = Some(chosen);
+    }
+
+    fn mean_near(&self, centre: usize, radius: f64) -> Vector2 {
+        let c = self.offset_of(centre);
+        let h = self.cfg.cell_m;
+        let k = if radius > 0.0 {
+            (radius / h).ceil() as i64
+        } else {
+            i64::MAX / 4
+        };
+        let (cc, cr) = ((centre % self.nx) as i64, (centre / self.nx) as i64);
+        let (a0, a1, b0, b1) = self.active;
+        let (x0, x1) = (
+            (cc - k).max(a0 as i64) as usize,
+            (cc + k).min(a1 as i64) as usize,
+        );
+        let (y0, y1) = (
+            (cr - k).max(b0 as i64) as usize,
+            (cr + k).min(b1 as i64) as usize,
+        );
+        let (mut sum, mut w) = (Vector2::zeros(), 0.0);
+        for r in y0..=y1 {
+            for col in x0..=x1 {
+                let i = r * self.nx + col;
+                let o = self.offset_of(i);
+                if radius > 0.0 && (o - c).norm() > radius {
+                    continue;
+                }
+                sum += self.prob[i] * o;
+                w += self.prob[i];
+            }
+        }
+        if w > 0.0 { sum / w } else { c }
+    }
+}
+
+impl Fuser for PointMassFilter {
+    fn name(&self) -> &'static str {
+        "pmf"
+    }
+
+    fn on_step(&mut self, step: &StepEvent) {
+        if !self.guard.accept_step(step) {
+            return;
+        }
+        self.t = step.t;
+        self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
+        if !self.initialised {
+            return;
+        }
+        let h = self.cfg.cell_m;
+        self.pending_drift += self.cfg.drift_m2_per_step;
+        while self.pending_drift >= 0.5 * h * h {
+            self.blur();
+            self.pending_drift -= 0.5 * h * h;
+        }
+        if let Some(grid) = self.walkable.clone() {
+            let (unit, outside) = (self.cfg.unit_likelihood, self.cfg.outside_likelihood);
+            self.weigh(|_, pos| match grid.class_at(pos) {
+                CellClass::Walkable => 1.0,
+                CellClass::Unit => unit,
+                CellClass::Outside => outside,
+            });
+        }
+        self.normalise();
+        self.choose_mode();
+    }
+
+    fn on_wifi(&mut self, obs: &WifiObservation) {
+        if !self.guard.accept_wifi(obs) {
+            return;
+        }
+        self.t = obs.t;
+        if !self.initialised {
+            let m = Vector2::new(100.0, 100.0);
+            if self
+                .lay_lattice(obs.estimate - m, obs.estimate + m)
+                .is_err()
+            {
+                return;
+            }
+        }
+        let f = obs.estimate;
+        let inv = 1.0 / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
+        let (outlier, gap_like) = (self.cfg.wifi_outlier, self.cfg.gap_likelihood);
+        let gap_inv = 1.0 / (2.0 * self.cfg.gap_sd_m * self.cfg.gap_sd_m);
+        self.weigh(|s, pos| {
+            let r2 = (f - pos).norm_squared();
+            if s.gap.as_ref().is_some_and(|g| g.is_gap(pos)) {
+                gap_like * (-r2 * gap_inv).exp() + outlier
+            } else {
+                (-r2 * inv).exp() + outlier
+            }
+        });
+        self.normalise();
+        self.choose_mode();
+        self.reporting = true;
+    }
+
+    fn estimate(&self) -> Option<Estimate> {
+        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
+            return None;
+        }
+        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
+        let p = Point2::from(o + self.pdr);
+        (p.x.is_finite() && p.y.is_finite())
+            .then(|| Estimate::point(self.t, p, self.guard.diagnostics()))
+    }
+}
