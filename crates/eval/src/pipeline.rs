@@ -23,6 +23,7 @@ use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
+use wipdr_fusion::static_start::{StaticStart, StaticStartConfig};
 use wipdr_fusion::{BuildContext, MapMatched, SchemeConfig, WalkableGrid, WallIndex};
 use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
@@ -109,6 +110,12 @@ pub struct EvalConfig {
     /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
     /// §4; [`MapMatched`]): causal, from the plan alone.
     pub map_matching: bool,
+    /// Start every scheme from the robust average of the fixes taken before the first step
+    /// (paper 001 §3.2; [`StaticStart`]); `None`: off.
+    pub static_start: Option<StaticStartConfig>,
+    /// Score only waypoints within this many metres of path from the walk's first waypoint
+    /// (the "first 20 m" of issue 8's static start); `None`: the whole walk.
+    pub score_first_m: Option<f64>,
 }
 
 impl Default for EvalConfig {
@@ -135,6 +142,8 @@ impl Default for EvalConfig {
             seed: 1,
             schemes: BTreeMap::new(),
             map_matching: false,
+            static_start: None,
+            score_first_m: None,
         }
     }
 }
@@ -430,6 +439,26 @@ pub struct FloorEnv {
     pub walkable: Option<Arc<WalkableGrid>>,
 }
 
+/// Options wrapped around every scheme by [`run_scheme`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RunOptions {
+    /// Map-match the estimates ([`MapMatched`]).
+    pub map_matching: bool,
+    /// Static start ([`StaticStart`]); not applied to the `pdr` baseline, which starts at
+    /// the true first waypoint.
+    pub static_start: Option<StaticStartConfig>,
+}
+
+impl RunOptions {
+    /// The options of an evaluation config.
+    pub fn of(cfg: &EvalConfig) -> Self {
+        Self {
+            map_matching: cfg.map_matching,
+            static_start: cfg.static_start.clone(),
+        }
+    }
+}
+
 /// Raster cell of [`FloorEnv::walkable`], metres.
 pub const WALKABLE_CELL_M: f64 = 0.5;
 
@@ -463,9 +492,14 @@ pub fn run_scheme(
     scheme: &SchemeConfig,
     walk: &PreparedWalk,
     env: Option<&FloorEnv>,
-    map_matching: bool,
+    options: &RunOptions,
     seed: u64,
 ) -> Result<Track, EvalError> {
+    let RunOptions {
+        map_matching,
+        static_start,
+    } = options;
+    let map_matching = *map_matching;
     let is_pdr_baseline = scheme.name() == "pdr";
     let start = if is_pdr_baseline {
         walk.true_start()
@@ -484,6 +518,9 @@ pub fn run_scheme(
         scheme: scheme.name().to_string(),
         source,
     })?;
+    if let Some(ss) = static_start.as_ref().filter(|_| !is_pdr_baseline) {
+        fuser = Box::new(StaticStart::new(fuser, ss.clone()));
+    }
     if map_matching && let Some(grid) = walkable {
         fuser = Box::new(MapMatched::new(fuser, grid));
     }
@@ -524,6 +561,7 @@ pub fn run_prepared(
         .map(|s| cfg.scheme(s))
         .collect::<Result<_, _>>()?;
     let envs: Vec<FloorEnv> = floors.par_iter().map(FloorEnv::new).collect();
+    let options = RunOptions::of(cfg);
     let jobs: Vec<(usize, usize)> = (0..prepared.len())
         .flat_map(|w| (0..configs.len()).map(move |s| (w, s)))
         .collect();
@@ -535,7 +573,7 @@ pub fn run_prepared(
                 &configs[s],
                 pw,
                 Some(&envs[pw.floor_index]),
-                cfg.map_matching,
+                &options,
                 cfg.seed,
             )?;
             let from = if cfg.score_from_first_scan {
@@ -543,7 +581,10 @@ pub fn run_prepared(
             } else {
                 None
             };
-            let score = score_track(&pw.waypoints, &track, from);
+            let score = match cfg.score_first_m {
+                None => score_track(&pw.waypoints, &track, from),
+                Some(m) => score_track(&first_metres(&pw.waypoints, m), &track, from),
+            };
             on_done();
             Ok(WalkResult {
                 floor: pw.floor.clone(),
@@ -560,6 +601,22 @@ pub fn run_prepared(
         floors.iter().map(|f| f.label.clone()).collect(),
         walks,
     ))
+}
+
+/// The waypoints within `metres` of path (along the waypoints) from the first one.
+pub fn first_metres(waypoints: &[Waypoint], metres: f64) -> Vec<Waypoint> {
+    let mut out = Vec::new();
+    let mut walked = 0.0;
+    for (i, w) in waypoints.iter().enumerate() {
+        if i > 0 {
+            walked += (w.position - waypoints[i - 1].position).norm();
+        }
+        if walked > metres {
+            break;
+        }
+        out.push(*w);
+    }
+    out
 }
 
 /// [`prepare`] then [`run_prepared`].
@@ -590,7 +647,7 @@ pub fn tracks_of(
                     &cfg.scheme(s)?,
                     walk,
                     Some(&env),
-                    cfg.map_matching,
+                    &RunOptions::of(cfg),
                     cfg.seed,
                 )?,
             ))

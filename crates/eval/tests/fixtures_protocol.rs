@@ -73,15 +73,15 @@ fn test_walk_waypoints_never_reach_a_scheme() {
     let (a, b) = (&before[0], &after[0]);
     for s in fused_schemes() {
         let scheme = cfg.scheme(&s).unwrap();
-        let ta = pipeline::run_scheme(&scheme, a, None, false, 7).unwrap();
-        let tb = pipeline::run_scheme(&scheme, b, None, false, 7).unwrap();
+        let ta = pipeline::run_scheme(&scheme, a, None, &Default::default(), 7).unwrap();
+        let tb = pipeline::run_scheme(&scheme, b, None, &Default::default(), 7).unwrap();
         assert_eq!(ta, tb, "scheme {s} depends on the test walk's waypoints");
         assert!(!ta.is_empty(), "scheme {s} produced no estimate");
     }
     // The PDR baseline starts at the true first waypoint, by the protocol (labelled so).
     let pdr = cfg.scheme("pdr").unwrap();
-    let ta = pipeline::run_scheme(&pdr, a, None, false, 7).unwrap();
-    let tb = pipeline::run_scheme(&pdr, b, None, false, 7).unwrap();
+    let ta = pipeline::run_scheme(&pdr, a, None, &Default::default(), 7).unwrap();
+    let tb = pipeline::run_scheme(&pdr, b, None, &Default::default(), 7).unwrap();
     let shift = tb[0].1 - ta[0].1;
     assert!((shift - wipdr_core::Vector2::new(500.0, -300.0)).norm() < 1e-9);
 }

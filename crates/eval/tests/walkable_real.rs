@@ -54,3 +54,44 @@ fn truth_is_mostly_walkable_on_the_real_floors() {
         );
     }
 }
+
+/// How long walkers stand still at the start: Wi-Fi scans before the first PDR step (what
+/// the static start of paper 001 §3.2 can average).
+#[test]
+fn scans_before_the_first_step_on_the_real_floors() {
+    use wipdr_eval::pipeline::{EvalConfig, FloorInput, prepare};
+    let root = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ilc20"
+    ));
+    if !root.is_dir() {
+        println!("skipped: {} not found", root.display());
+        return;
+    }
+    let cache =
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
+    let data =
+        read_floor_dir_cached(root.join("site1/F1"), &cache, &ReadOptions::default()).unwrap();
+    let floor = FloorInput {
+        label: "site1/F1".into(),
+        data: std::sync::Arc::new(data),
+    };
+    let prepared = prepare(std::slice::from_ref(&floor), &EvalConfig::default()).unwrap();
+    let mut histogram = [0usize; 4];
+    let mut standing_s = Vec::new();
+    for w in &prepared {
+        let first_step = w.steps.first().map_or(i64::MAX, |s| s.t);
+        let held = w.observations.iter().filter(|o| o.t < first_step).count();
+        histogram[held.min(3)] += 1;
+        if let (Some(s), Some(o)) = (w.steps.first(), w.observations.first()) {
+            standing_s.push((s.t - o.t) as f64 / 1000.0);
+        }
+    }
+    standing_s.sort_by(f64::total_cmp);
+    println!(
+        "site1/F1: walks with 0 / 1 / 2 / 3+ fixes before the first step: {histogram:?}; \
+         first step minus first fix, median {:.1} s",
+        standing_s[standing_s.len() / 2]
+    );
+    assert_eq!(histogram.iter().sum::<usize>(), prepared.len());
+}

@@ -21,7 +21,9 @@
 //! | `rof` | robust offset: PDR placed by the geometric median of recent Wi-Fi offsets | wipdr's own baseline, not from the papers |
 //! | `pmf` | point-mass filter over the PDR track's placement with walkable space and coverage-aware Wi-Fi | wipdr's own, not from the papers |
 //!
-//! Any scheme's output can be map-matched onto walkable space ([`MapMatched`], paper 004 §4).
+//! Any scheme's output can be map-matched onto walkable space ([`MapMatched`], paper 004 §4),
+//! and any scheme can start from the robust average of the fixes taken while the walker
+//! stood still ([`static_start::StaticStart`], paper 001 §3.2).
 //!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free
@@ -62,6 +64,7 @@ pub mod particle;
 pub mod point_mass;
 pub mod resample;
 pub mod robust_offset;
+pub mod static_start;
 pub mod synthetic;
 pub mod tcpf;
 pub mod walkable;

@@ -60,7 +60,8 @@ use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle
 use crate::walkable::{CellClass, WalkableGrid};
 use crate::{Estimate, Fuser, FusionError, InputGuard};
 
-/// Config of `pmf`.
+/// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`
+/// and docs/results/fusion-real.md), so they are optimistic there.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PointMassConfig {
@@ -93,6 +94,11 @@ pub struct PointMassConfig {
     /// Radius around the most probable cell over which the estimate is averaged, metres
     /// (0: the whole posterior).
     pub estimate_radius_m: f64,
+    /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
+    /// matcher's distance unit; 0: every fix trusted alike).
+    pub quality_distance: f64,
+    /// Softness of that logistic, in the same unit.
+    pub quality_softness: f64,
     /// Half-width of the square over which a mode's probability is summed, metres.
     pub mode_radius_m: f64,
     /// Keep the previous mode while it holds at least this share of the best mode's mass.
@@ -106,16 +112,18 @@ impl Default for PointMassConfig {
         Self {
             cell_m: 1.0,
             margin_m: 10.0,
-            drift_m2_per_step: 0.02,
-            unit_likelihood: 0.5,
-            outside_likelihood: 0.1,
+            drift_m2_per_step: 0.05,
+            unit_likelihood: 0.8,
+            outside_likelihood: 0.3,
             wifi_sd_m: 6.0,
-            wifi_outlier: 0.05,
+            wifi_outlier: 0.1,
             gap_distance_m: 0.0,
             gap_likelihood: 0.5,
             gap_sd_m: 25.0,
             recovery: 1e-6,
             estimate_radius_m: 10.0,
+            quality_distance: 0.0,
+            quality_softness: 5.0,
             mode_radius_m: 5.0,
             mode_hysteresis: 0.5,
             step_scale: 1.0,
@@ -130,6 +138,7 @@ impl PointMassConfig {
             ("cell_m", self.cell_m),
             ("wifi_sd_m", self.wifi_sd_m),
             ("gap_sd_m", self.gap_sd_m),
+            ("quality_softness", self.quality_softness),
             ("step_scale", self.step_scale),
         ];
         for (field, v) in positive {
@@ -148,6 +157,7 @@ impl PointMassConfig {
             ("recovery", self.recovery),
             ("estimate_radius_m", self.estimate_radius_m),
             ("mode_radius_m", self.mode_radius_m),
+            ("quality_distance", self.quality_distance),
         ];
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
@@ -470,8 +480,23 @@ impl PointMassFilter {
                 }
             }
         }
-        if a0 != usize::MAX {
+        if a0 != usize::MAX && (a0, a1, b0, b1) != self.active {
+            // Cells dropped from the window now count as background: renormalise so that
+            // the represented distribution sums to one exactly.
             self.active = (a0, a1, b0, b1);
+            let n_active = ((a1 - a0 + 1) * (b1 - b0 + 1)) as f64;
+            let mut total = self.bg * (n - n_active);
+            for r in b0..=b1 {
+                total += self.prob[r * self.nx + a0..=r * self.nx + a1]
+                    .iter()
+                    .sum::<f64>();
+            }
+            self.bg /= total;
+            for r in b0..=b1 {
+                for v in &mut self.prob[r * self.nx + a0..=r * self.nx + a1] {
+                    *v /= total;
+                }
+            }
         }
     }
 
@@ -660,6 +685,14 @@ impl Fuser for PointMassFilter {
             }
         }
         let f = obs.estimate;
+        // Fix quality: a poor best match (large signal distance) is likely a coverage gap or
+        // a gross fix, so its Gaussian part is down-weighted (a logistic in the distance).
+        let trust = match obs.best_distance() {
+            Some(d) if self.cfg.quality_distance > 0.0 && d.is_finite() => {
+                1.0 / (1.0 + ((d - self.cfg.quality_distance) / self.cfg.quality_softness).exp())
+            }
+            _ => 1.0,
+        };
         let inv = 1.0 / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
         let (outlier, gap_like) = (self.cfg.wifi_outlier, self.cfg.gap_likelihood);
         let gap_inv = 1.0 / (2.0 * self.cfg.gap_sd_m * self.cfg.gap_sd_m);
@@ -668,7 +701,7 @@ impl Fuser for PointMassFilter {
             if s.gap.as_ref().is_some_and(|g| g.is_gap(pos)) {
                 gap_like * (-r2 * gap_inv).exp() + outlier
             } else {
-                (-r2 * inv).exp() + outlier
+                trust * (-r2 * inv).exp() + outlier
             }
         });
         self.normalise();
@@ -684,5 +717,174 @@ impl Fuser for PointMassFilter {
         let p = Point2::from(o + self.pdr);
         (p.x.is_finite() && p.y.is_finite())
             .then(|| Estimate::point(self.t, p, self.guard.diagnostics()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use wipdr_core::{FloorPlan, MotionState, Polygon, Unit};
+
+    fn fix(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
+        WifiObservation {
+            t,
+            estimate: Point2::new(x, y),
+            candidates: vec![],
+            visited: 0,
+            floor: None,
+            building: None,
+        }
+    }
+
+    fn step(t: TimestampMs, heading: f64) -> StepEvent {
+        StepEvent {
+            t,
+            length: 0.7,
+            heading,
+            heading_change: 0.0,
+            period_s: 0.5,
+            motion: MotionState::default(),
+        }
+    }
+
+    fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
+        Polygon::new(
+            vec![
+                Point2::new(x0, y0),
+                Point2::new(x1, y0),
+                Point2::new(x1, y1),
+                Point2::new(x0, y1),
+            ],
+            vec![],
+        )
+        .unwrap()
+    }
+
+    /// A 60 m x 40 m floor whose only walkable space is a 3 m wide ring corridor around
+    /// one big unit.
+    fn ring_plan() -> Arc<WalkableGrid> {
+        let plan = FloorPlan::new(
+            60.0,
+            40.0,
+            vec![rect(0.0, 0.0, 60.0, 40.0)],
+            vec![Unit {
+                name: "block".into(),
+                polygon: rect(3.0, 3.0, 57.0, 37.0),
+            }],
+        )
+        .unwrap();
+        Arc::new(WalkableGrid::new(&plan, 0.5).unwrap())
+    }
+
+    fn total(f: &PointMassFilter) -> f64 {
+        let (x0, x1, y0, y1) = f.active;
+        let n_active = (x1 - x0 + 1) * (y1 - y0 + 1);
+        let mut s = f.bg * (f.prob.len() - n_active) as f64;
+        for r in y0..=y1 {
+            for c in x0..=x1 {
+                s += f.prob[r * f.nx + c];
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn walls_and_fixes_find_the_corridor() {
+        // Walk north along the left corridor (x = 1.5) from y = 5, then east along the top
+        // (y = 38.5). Fixes are 4 m off, one of them 40 m off.
+        let mut f = PointMassFilter::new(PointMassConfig::default(), Some(ring_plan()), None, None)
+            .unwrap();
+        let mut truth = Point2::new(1.5, 5.0);
+        let mut t = 0;
+        f.on_wifi(&fix(t, truth.x + 4.0, truth.y));
+        for k in 0..90 {
+            t += 500;
+            let heading = if k < 48 {
+                0.0
+            } else {
+                std::f64::consts::FRAC_PI_2
+            };
+            truth += angle::step_displacement(0.7, heading);
+            f.on_step(&step(t, heading));
+            if k % 6 == 5 {
+                let gross = if k == 35 { 40.0 } else { 0.0 };
+                f.on_wifi(&fix(t, truth.x + 3.0, truth.y - 3.0 + gross));
+            }
+            assert!((total(&f) - 1.0).abs() < 1e-9);
+        }
+        let p = f.estimate().unwrap().position;
+        assert!((p - truth).norm() < 2.5, "estimate {p:?} truth {truth:?}");
+        assert!(f.walkable.as_ref().unwrap().class_at(p) == CellClass::Walkable);
+    }
+
+    #[test]
+    fn a_given_start_is_kept_by_a_pdr_walk() {
+        let mut f = PointMassFilter::new(
+            PointMassConfig::default(),
+            None,
+            None,
+            Some(Point2::new(5.0, 5.0)),
+        )
+        .unwrap();
+        for k in 1..=10 {
+            f.on_step(&step(k * 500, 0.0));
+        }
+        let p = f.estimate().unwrap().position;
+        assert!((p - Point2::new(5.0, 12.0)).norm() < 1.0, "{p:?}");
+    }
+
+    #[test]
+    fn invalid_configs_are_rejected() {
+        for cfg in [
+            PointMassConfig {
+                cell_m: 0.0,
+                ..Default::default()
+            },
+            PointMassConfig {
+                unit_likelihood: 0.0,
+                ..Default::default()
+            },
+            PointMassConfig {
+                wifi_outlier: f64::NAN,
+                ..Default::default()
+            },
+            PointMassConfig {
+                cell_m: 0.001,
+                ..Default::default()
+            },
+        ] {
+            let with_plan = PointMassFilter::new(cfg, Some(ring_plan()), None, None);
+            assert!(with_plan.is_err());
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        /// Whatever the inputs (huge, far, out of the plan, into walls), the probabilities
+        /// stay a distribution and the estimate stays finite.
+        #[test]
+        fn probabilities_stay_a_distribution(
+            inputs in proptest::collection::vec((any::<bool>(), -1e4f64..1e4, -1e4f64..1e4, -10.0f64..10.0), 1..60),
+            with_plan in any::<bool>(),
+        ) {
+            let plan = with_plan.then(ring_plan);
+            let mut f = PointMassFilter::new(PointMassConfig::default(), plan, None, None).unwrap();
+            for (k, (is_fix, x, y, h)) in inputs.into_iter().enumerate() {
+                let t = k as TimestampMs * 300;
+                if is_fix {
+                    f.on_wifi(&fix(t, x / 100.0, y / 100.0));
+                } else {
+                    f.on_step(&step(t, h));
+                }
+                if f.initialised {
+                    prop_assert!((total(&f) - 1.0).abs() < 1e-9, "total {}", total(&f));
+                    prop_assert!(f.prob.iter().all(|v| v.is_finite() && *v >= 0.0));
+                }
+                if let Some(e) = f.estimate() {
+                    prop_assert!(e.position.x.is_finite() && e.position.y.is_finite());
+                }
+            }
+        }
     }
 }

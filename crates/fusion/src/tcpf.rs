@@ -98,8 +98,28 @@ pub struct TcpfConfig {
     pub initial_lambda: f64,
 }
 
+/// The shipped default is tuned for recorded smartphone walks (docs/results/papers.md):
+/// `rho_m`, `beta_deg` and `epsilon` from the `tcpf` sweep (`docs/sweeps/tune-tcpf.toml`);
+/// `alpha` from the PDR error model of eq. 14 (`wipdr pdr-fit`: 0.2034 m of error per metre
+/// walked, heading sigma 14.7 deg) over the measured Wi-Fi mean error (8.09 m), as §5.3
+/// derives it. [`TcpfConfig::paper`] holds the paper's values.
 impl Default for TcpfConfig {
     fn default() -> Self {
+        Self {
+            rho_m: 5.6,
+            beta_deg: 50.0,
+            epsilon: 0.125,
+            pdr_error_per_metre: 0.2034,
+            wifi_mean_error_m: 8.09,
+            ..Self::paper()
+        }
+    }
+}
+
+impl TcpfConfig {
+    /// The paper's values (002 §5.3: rho 2 m, beta 45 deg, epsilon 1, 8.9675 cm per 0.75 m
+    /// step, Wi-Fi mean error 2.68 m).
+    pub fn paper() -> Self {
         Self {
             rho_m: 2.0,
             beta_deg: 45.0,
