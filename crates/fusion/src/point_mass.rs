@@ -81,7 +81,8 @@ pub struct PointMassConfig {
     /// Outlier floor of the Wi-Fi likelihood (relative to its peak of 1).
     pub wifi_outlier: f64,
     /// Distance from the nearest reference point beyond which a position counts as a
-    /// coverage gap, metres (0: no coverage awareness).
+    /// coverage gap, metres (0: no coverage awareness; also off when the filter is built
+    /// without the radio map's reference points).
     pub gap_distance_m: f64,
     /// Peak Wi-Fi likelihood of a hypothesis in a coverage gap (relative to a peak of 1 in
     /// covered space): a fix there lands at some covered place near the walker, so the
@@ -117,9 +118,9 @@ impl Default for PointMassConfig {
             outside_likelihood: 0.3,
             wifi_sd_m: 6.0,
             wifi_outlier: 0.1,
-            gap_distance_m: 0.0,
-            gap_likelihood: 0.5,
-            gap_sd_m: 25.0,
+            gap_distance_m: 15.0,
+            gap_likelihood: 0.3,
+            gap_sd_m: 20.0,
             recovery: 1e-6,
             estimate_radius_m: 10.0,
             quality_distance: 0.0,
@@ -816,6 +817,24 @@ mod tests {
         let p = f.estimate().unwrap().position;
         assert!((p - truth).norm() < 2.5, "estimate {p:?} truth {truth:?}");
         assert!(f.walkable.as_ref().unwrap().class_at(p) == CellClass::Walkable);
+    }
+
+    #[test]
+    fn gap_raster_marks_cells_beyond_the_distance() {
+        let points = vec![Point2::new(10.0, 10.0), Point2::new(40.0, 10.0)];
+        let g = GapRaster::new(&points, 1.0, 8.0, (Point2::new(0.0, 0.0), Point2::new(60.0, 30.0)))
+            .unwrap();
+        for (x, y, gap) in [
+            (10.0, 10.0, false),
+            (16.0, 12.0, false),
+            (40.0, 17.0, false),
+            (25.0, 10.0, true),
+            (10.0, 25.0, true),
+            (-5.0, 10.0, true),
+        ] {
+            assert_eq!(g.is_gap(Point2::new(x, y)), gap, "({x}, {y})");
+        }
+        assert!(GapRaster::new(&[], 1.0, 8.0, (Point2::origin(), Point2::new(1.0, 1.0))).is_none());
     }
 
     #[test]

@@ -10,7 +10,7 @@ pub struct Args {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof"
+        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf"
     )]
     schemes: Vec<String>,
     /// Write plots into this folder.

@@ -16,7 +16,7 @@ pub struct Args {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof"
+        default_value = "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf"
     )]
     pub schemes: Vec<String>,
     /// Evaluation config (TOML; see `docs/guide.md`); defaults otherwise.
