@@ -10,7 +10,7 @@
 #           `cargo build --release -p wipdr`)
 #   DATA    the ILC floors (default ../shared/data/ilc20)
 #   WORK    scratch folder for JSON and sweep CSVs (default target/papers)
-#   SCHEMES the schemes of the all-schemes table (default: every scheme but pmf)
+#   SCHEMES the schemes of the all-schemes table (default: every scheme)
 #
 #   FRESH   FRESH=1 deletes the sweep CSVs before `tune` (needed after any change to a
 #           scheme's code or defaults: resumed rows would come from the old code)
@@ -24,7 +24,7 @@ cd "$(dirname "$0")/../.."
 WIPDR=${WIPDR:-target/release/wipdr}
 DATA=${DATA:-../shared/data/ilc20}
 WORK=${WORK:-target/papers}
-SCHEMES=${SCHEMES:-wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof}
+SCHEMES=${SCHEMES:-wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf}
 # Schemes with a tuning sweep docs/sweeps/tune-<name>.toml; apf-med is MED + APF.
 TUNED="ekf aekf akf rkf arkf aws tcpf rof pf apf apf-med"
 FLOORS="$DATA/site1/F1 $DATA/site1/F2 $DATA/site2/F1 $DATA/site2/F2 $DATA/site2/F3"

@@ -822,8 +822,13 @@ mod tests {
     #[test]
     fn gap_raster_marks_cells_beyond_the_distance() {
         let points = vec![Point2::new(10.0, 10.0), Point2::new(40.0, 10.0)];
-        let g = GapRaster::new(&points, 1.0, 8.0, (Point2::new(0.0, 0.0), Point2::new(60.0, 30.0)))
-            .unwrap();
+        let g = GapRaster::new(
+            &points,
+            1.0,
+            8.0,
+            (Point2::new(0.0, 0.0), Point2::new(60.0, 30.0)),
+        )
+        .unwrap();
         for (x, y, gap) in [
             (10.0, 10.0, false),
             (16.0, 12.0, false),
