@@ -7,18 +7,26 @@ use wipdr_fusion::walkable::{CellClass, WalkableGrid};
 use wipdr_io::cache::{DEFAULT_CACHE_DIR, read_floor_dir_cached};
 use wipdr_io::floor::ReadOptions;
 
-#[test]
-fn truth_is_mostly_walkable_on_the_real_floors() {
+/// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
+fn real_data() -> Option<(PathBuf, PathBuf)> {
     let root = PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../../shared/data/ilc20"
     ));
     if !root.is_dir() {
         println!("skipped: {} not found", root.display());
-        return;
+        return None;
     }
     let cache =
         PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
+    Some((root, cache))
+}
+
+#[test]
+fn truth_is_mostly_walkable_on_the_real_floors() {
+    let Some((root, cache)) = real_data() else {
+        return;
+    };
     for floor in ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"] {
         let data =
             read_floor_dir_cached(root.join(floor), &cache, &ReadOptions::default()).unwrap();
@@ -60,16 +68,9 @@ fn truth_is_mostly_walkable_on_the_real_floors() {
 #[test]
 fn scans_before_the_first_step_on_the_real_floors() {
     use wipdr_eval::pipeline::{EvalConfig, FloorInput, prepare};
-    let root = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20"
-    ));
-    if !root.is_dir() {
-        println!("skipped: {} not found", root.display());
+    let Some((root, cache)) = real_data() else {
         return;
-    }
-    let cache =
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
+    };
     let data =
         read_floor_dir_cached(root.join("site1/F1"), &cache, &ReadOptions::default()).unwrap();
     let floor = FloorInput {
