@@ -87,13 +87,17 @@ fn apf_per_step(c: &mut Criterion) {
     group.finish();
 }
 
-/// One real walk of site1/F1 as fusion inputs: PDR steps (default config) and WKNN fixes on a
-/// radio map of the floor's other walks. `None` (with a printed reason) without the data.
-fn real_walk() -> Option<(
+/// A floor plan, a walk's steps and fixes, and the radio map's reference-point positions.
+type RealWalk = (
     wipdr_core::FloorPlan,
     Vec<wipdr_core::StepEvent>,
     Vec<wipdr_core::WifiObservation>,
-)> {
+    Vec<wipdr_core::Point2>,
+);
+
+/// One real walk of site1/F1 as fusion inputs: PDR steps (default config) and WKNN fixes on a
+/// radio map of the floor's other walks. `None` (with a printed reason) without the data.
+fn real_walk() -> Option<RealWalk> {
     use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, QueryFilter, walk_map};
     let dir = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -120,6 +124,7 @@ fn real_walk() -> Option<(
         .map(|(_, w)| &w.walk);
     let cfg = walk_map::WalkMapConfig::default();
     let (map, _) = walk_map::build_from_walks(train, &cfg).ok()?;
+    let coverage = map.points.iter().map(|p| p.position).collect();
     let matcher = KnnMatcher::new(map, KnnConfig::default()).ok()?;
     let query = QueryFilter {
         max_age_ms: cfg.max_entry_age_ms,
@@ -132,11 +137,55 @@ fn real_walk() -> Option<(
         .iter()
         .filter_map(|s| matcher.locate_scan(s, &query).ok())
         .collect();
-    Some((floor.plan, steps, obs))
+    Some((floor.plan, steps, obs, coverage))
+}
+
+/// Feeds a whole walk to a fresh fuser (steps before a fix of the same millisecond).
+fn run_walk(
+    config: &SchemeConfig,
+    ctx: &BuildContext,
+    steps: &[wipdr_core::StepEvent],
+    obs: &[wipdr_core::WifiObservation],
+) -> Option<wipdr_fusion::Estimate> {
+    let mut fuser = config.build(ctx).unwrap();
+    let (mut i, mut j) = (0, 0);
+    while i < steps.len() || j < obs.len() {
+        if j >= obs.len() || (i < steps.len() && steps[i].t <= obs[j].t) {
+            fuser.on_step(&steps[i]);
+            i += 1;
+        } else {
+            fuser.on_wifi(&obs[j]);
+            j += 1;
+        }
+    }
+    fuser.estimate()
+}
+
+/// `pmf` over the same real walk: the walkable raster (0.5 m, built once per floor, as the
+/// eval does) and the radio map's reference points are shared inputs, not timed.
+fn pmf_on_a_real_floor(c: &mut Criterion) {
+    let Some((plan, steps, obs, coverage)) = real_walk() else {
+        return;
+    };
+    let ctx = BuildContext {
+        walkable: Some(std::sync::Arc::new(
+            wipdr_fusion::WalkableGrid::new(&plan, 0.5).unwrap(),
+        )),
+        coverage: Some(std::sync::Arc::new(coverage)),
+        ..BuildContext::default()
+    };
+    let config = SchemeConfig::default_for("pmf").unwrap();
+    let mut group = c.benchmark_group("pmf_real");
+    group.throughput(criterion::Throughput::Elements(steps.len() as u64));
+    group.sample_size(10);
+    group.bench_function("whole_walk_site1F1", |b| {
+        b.iter(|| black_box(run_walk(&config, &ctx, &steps, &obs)))
+    });
+    group.finish();
 }
 
 fn apf_on_a_real_floor(c: &mut Criterion) {
-    let Some((plan, steps, obs)) = real_walk() else {
+    let Some((plan, steps, obs, _)) = real_walk() else {
         return;
     };
     let ctx = BuildContext::with_floor_plan(&plan);
@@ -155,22 +204,7 @@ fn apf_on_a_real_floor(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function(
         BenchmarkId::new("whole_walk_site1F1", plan.walls.len()),
-        |b| {
-            b.iter(|| {
-                let mut fuser = config.build(&ctx).unwrap();
-                let (mut i, mut j) = (0, 0);
-                while i < steps.len() || j < obs.len() {
-                    if j >= obs.len() || (i < steps.len() && steps[i].t <= obs[j].t) {
-                        fuser.on_step(&steps[i]);
-                        i += 1;
-                    } else {
-                        fuser.on_wifi(&obs[j]);
-                        j += 1;
-                    }
-                }
-                black_box(fuser.estimate())
-            })
-        },
+        |b| b.iter(|| black_box(run_walk(&config, &ctx, &steps, &obs))),
     );
     group.finish();
 }
@@ -179,6 +213,7 @@ criterion_group!(
     benches,
     ekf_step_and_update,
     apf_per_step,
-    apf_on_a_real_floor
+    apf_on_a_real_floor,
+    pmf_on_a_real_floor
 );
 criterion_main!(benches);
