@@ -495,11 +495,6 @@ pub fn run_scheme(
     options: &RunOptions,
     seed: u64,
 ) -> Result<Track, EvalError> {
-    let RunOptions {
-        map_matching,
-        static_start,
-    } = options;
-    let map_matching = *map_matching;
     let is_pdr_baseline = scheme.name() == "pdr";
     let start = if is_pdr_baseline {
         walk.true_start()
@@ -518,10 +513,12 @@ pub fn run_scheme(
         scheme: scheme.name().to_string(),
         source,
     })?;
-    if let Some(ss) = static_start.as_ref().filter(|_| !is_pdr_baseline) {
+    if let Some(ss) = options.static_start.as_ref().filter(|_| !is_pdr_baseline) {
         fuser = Box::new(StaticStart::new(fuser, ss.clone()));
     }
-    if map_matching && let Some(grid) = walkable {
+    if options.map_matching
+        && let Some(grid) = walkable
+    {
         fuser = Box::new(MapMatched::new(fuser, grid));
     }
     let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);

@@ -2,26 +2,12 @@
 //! reaches a scheme, per-walk and pooled figures agree, and an interrupted sweep resumed
 //! ends with the same file as an uninterrupted one.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
-use wipdr_io::floor::{ReadOptions, read_floor_dir};
 
-fn fixture_floor() -> FloorInput {
-    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/sim"));
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
-        .expect("fixtures/sim exists")
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join("floor_info.json").is_file())
-        .collect();
-    dirs.sort();
-    let data = read_floor_dir(&dirs[0], &ReadOptions::default()).expect("fixture floor reads");
-    FloorInput {
-        label: "fixture".into(),
-        data: Arc::new(data),
-    }
-}
+mod common;
+use common::fixture_floor;
 
 fn fused_schemes() -> Vec<String> {
     wipdr_fusion::scheme_names()

@@ -2,27 +2,14 @@
 //! the configs already finished stay in the file, and `resume` completes the sweep to the same
 //! file as an uninterrupted run.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use wipdr_eval::pipeline::{EvalConfig, FloorInput};
 use wipdr_eval::sweep::{self, SweepOptions, SweepOutcome, SweepSpec};
-use wipdr_io::floor::{ReadOptions, read_floor_dir};
 
-fn fixture_floor() -> FloorInput {
-    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/sim"));
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
-        .expect("fixtures/sim exists")
-        .map(|e| e.expect("fixture folder entry").path())
-        .filter(|p| p.join("floor_info.json").is_file())
-        .collect();
-    dirs.sort();
-    let data = read_floor_dir(&dirs[0], &ReadOptions::default()).expect("fixture floor reads");
-    FloorInput {
-        label: "fixture".into(),
-        data: Arc::new(data),
-    }
-}
+mod common;
+use common::fixture_floor;
 
 /// Six configs of the EKF: a 3-value grid times 2 random draws.
 fn spec() -> SweepSpec {

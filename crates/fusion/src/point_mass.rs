@@ -597,7 +597,7 @@ impl PointMassFilter {
             if pc >= x0 && pc <= x1 && pr >= y0 && pr <= y1 {
                 let m = mass(sat, pc - x0, pr - y0);
                 if m >= self.cfg.mode_hysteresis * best.2 {
-                    // Keep the previous mode's region; re-centre on its local peak.
+                    // Keep the previous mode.
                     return;
                 }
             }

@@ -1,0 +1,22 @@
+//! Shared by the eval integration tests: the committed synthetic fixture floor.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use wipdr_eval::pipeline::FloorInput;
+use wipdr_io::floor::{ReadOptions, read_floor_dir};
+
+/// The first floor under `fixtures/sim/`, labelled "fixture".
+pub fn fixture_floor() -> FloorInput {
+    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/sim"));
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
+        .expect("fixtures/sim exists")
+        .map(|e| e.expect("fixture folder entry").path())
+        .filter(|p| p.join("floor_info.json").is_file())
+        .collect();
+    dirs.sort();
+    let data = read_floor_dir(&dirs[0], &ReadOptions::default()).expect("fixture floor reads");
+    FloorInput {
+        label: "fixture".into(),
+        data: Arc::new(data),
+    }
+}
