@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use wipdr_eval::pipeline::FloorInput;
 use wipdr_io::cache::{self, CacheOutcome};
-use wipdr_io::floor::ReadOptions;
+use wipdr_io::floor::{FloorData, ReadOptions};
 
 /// A short label for a floor folder: its parent's name and its own (`site1/F1`).
 pub fn floor_label(dir: &Path) -> String {
@@ -20,6 +20,19 @@ pub fn floor_label(dir: &Path) -> String {
         (None, Some(n)) => n,
         _ => dir.display().to_string(),
     }
+}
+
+/// A one-line note on the walk files of `floor` that could not be read and were skipped:
+/// how many, and the first one's error; `None` when every walk file was read.
+pub fn skipped_walks_note(floor: &FloorData) -> Option<String> {
+    let first = floor.skipped_walks.first()?;
+    let skipped = floor.skipped_walks.len();
+    Some(format!(
+        "{}: {skipped} of {} walk files skipped (unreadable); first: {}",
+        floor.name,
+        skipped + floor.walks.len(),
+        first.error
+    ))
 }
 
 /// Reads floor folders through the binary cache (`target/wipdr-cache`), with a progress bar
@@ -39,6 +52,9 @@ pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
         )
         .with_context(|| format!("reading floor {}", dir.display()))?;
         pb.finish_and_clear();
+        if let Some(note) = skipped_walks_note(&data) {
+            eprintln!("{note}");
+        }
         tracing::info!(floor = %dir.display(), walks = data.walks.len(), cached = matches!(outcome, CacheOutcome::Hit), "floor loaded");
         out.push(FloorInput {
             label: floor_label(dir),
@@ -46,4 +62,56 @@ pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wipdr_core::{FloorPlan, Point2, Polygon, Walk, Waypoint};
+    use wipdr_io::{LonLatBox, floor, geojson, trace};
+
+    #[test]
+    fn notes_skipped_walks_only_when_there_are_some() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("site").join("F2");
+        std::fs::create_dir_all(dir.join(floor::WALKS_DIR)).unwrap();
+        floor::write_floor_info(dir.join(floor::FLOOR_INFO), 20.0, 10.0).unwrap();
+        let outline = Polygon::new(
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(20.0, 0.0),
+                Point2::new(20.0, 10.0),
+                Point2::new(0.0, 10.0),
+            ],
+            vec![],
+        )
+        .unwrap();
+        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
+        geojson::write_floor_plan(
+            dir.join(floor::GEOJSON_MAP),
+            &plan,
+            LonLatBox::around(8.0, 47.0, 20.0, 10.0),
+        )
+        .unwrap();
+        let mut walk = Walk::default();
+        walk.waypoints.push(Waypoint {
+            t: 1000,
+            position: Point2::new(1.0, 5.0),
+        });
+        trace::write_walk_file(&walk, dir.join(floor::WALKS_DIR).join("good.txt.gz")).unwrap();
+        let read = || floor::read_floor_dir(&dir, &ReadOptions::default()).unwrap();
+        assert_eq!(skipped_walks_note(&read()), None);
+        // Gzip magic bytes, then garbage: a corrupt stream.
+        let bad = dir.join(floor::WALKS_DIR).join("bad.txt.gz");
+        std::fs::write(&bad, [0x1f, 0x8b, 0x08, 0x00, 0xAB, 0xCD, 0xEF]).unwrap();
+        let note = skipped_walks_note(&read()).unwrap();
+        assert!(
+            note.starts_with("site/F2: 1 of 2 walk files skipped (unreadable); first: "),
+            "{note}"
+        );
+        assert!(
+            note.contains("bad.txt.gz: read failed after line 0"),
+            "{note}"
+        );
+    }
 }

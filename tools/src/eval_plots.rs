@@ -9,7 +9,7 @@ use wipdr_eval::pipeline::{self, EvalConfig, FloorInput, PreparedWalk};
 use wipdr_eval::report::EvalReport;
 
 /// How the trajectory plots are drawn.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PlotOptions {
     /// How many walks per floor get a trajectory and an error-against-time plot.
     pub walks_per_floor: usize,
@@ -17,6 +17,8 @@ pub struct PlotOptions {
     pub floor_image: bool,
     /// Lay the vector plan's walls over the image (thin, half transparent).
     pub walls_over_image: bool,
+    /// Plot the walks where this scheme's mean error is largest (instead of the first ones).
+    pub worst_of: Option<String>,
 }
 
 impl Default for PlotOptions {
@@ -25,29 +27,13 @@ impl Default for PlotOptions {
             walks_per_floor: 2,
             floor_image: true,
             walls_over_image: true,
+            worst_of: None,
         }
     }
 }
 
 /// Writes every plot; returns how many files were written.
 pub fn write_all(
-    dir: &Path,
-    floors: &[FloorInput],
-    prepared: &[PreparedWalk],
-    cfg: &EvalConfig,
-    schemes: &[String],
-    report: &EvalReport,
-    walks_per_floor: usize,
-) -> Result<usize> {
-    let options = PlotOptions {
-        walks_per_floor,
-        ..PlotOptions::default()
-    };
-    write_all_with(dir, floors, prepared, cfg, schemes, report, &options)
-}
-
-/// [`write_all`] with every drawing option.
-pub fn write_all_with(
     dir: &Path,
     floors: &[FloorInput],
     prepared: &[PreparedWalk],
@@ -61,11 +47,21 @@ pub fn write_all_with(
     error_cdf(&dir.join("error-cdf.png"), report, schemes)?;
     n += 1;
     for (fi, floor) in floors.iter().enumerate() {
-        let walks: Vec<&PreparedWalk> = prepared
-            .iter()
-            .filter(|p| p.floor_index == fi)
-            .take(options.walks_per_floor)
-            .collect();
+        let mut walks: Vec<&PreparedWalk> =
+            prepared.iter().filter(|p| p.floor_index == fi).collect();
+        if let Some(scheme) = &options.worst_of {
+            let mean_of = |pw: &PreparedWalk| {
+                report
+                    .walks
+                    .iter()
+                    .find(|w| &w.scheme == scheme && w.walk == pw.walk && w.floor == floor.label)
+                    .map(|w| wipdr_core::stats::ErrorStats::from_errors(&w.score.values()).mean)
+                    .filter(|m| m.is_finite())
+                    .unwrap_or(f64::NEG_INFINITY)
+            };
+            walks.sort_by(|a, b| mean_of(b).total_cmp(&mean_of(a)));
+        }
+        walks.truncate(options.walks_per_floor);
         if walks.is_empty() {
             continue;
         }

@@ -24,6 +24,7 @@ use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
 use wipdr_fusion::static_start::{StaticStart, StaticStartConfig};
+use wipdr_fusion::trails::{TrailRaster, trails_of};
 use wipdr_fusion::{BuildContext, MapMatched, SchemeConfig, WalkableGrid, WallIndex};
 use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
@@ -205,7 +206,16 @@ pub struct PreparedWalk {
     /// Positions of the fold's radio-map reference points (training data: where the map
     /// has fingerprints), shared by the fold's walks; coverage-aware schemes use it.
     pub coverage: Arc<Vec<Point2>>,
+    /// Where the fold's training walks went (segments between their consecutive waypoints),
+    /// shared by the fold's walks; `pmf`'s trail prior uses it. `None` when the training
+    /// walks have fewer than two waypoints each.
+    pub trails: Option<Arc<TrailRaster>>,
 }
+
+/// Raster cell of [`PreparedWalk::trails`], metres.
+pub const TRAIL_CELL_M: f64 = 0.5;
+/// Distance cap of [`PreparedWalk::trails`], metres.
+pub const TRAIL_MAX_DISTANCE_M: f64 = 15.0;
 
 impl PreparedWalk {
     /// The true first waypoint: the start of the PDR-only baseline (and only of it).
@@ -296,6 +306,18 @@ fn prepare_fold(
         build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
     tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
     let coverage: Arc<Vec<Point2>> = Arc::new(map.points.iter().map(|p| p.position).collect());
+    let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));
+    let trails = if segments.is_empty() {
+        None
+    } else {
+        match TrailRaster::new(&segments, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M) {
+            Ok(r) => Some(Arc::new(r)),
+            Err(e) => {
+                tracing::warn!(floor = %floor.label, fold, error = %e, "no trail raster");
+                None
+            }
+        }
+    };
     let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
     // The indexed matcher of `matcher_spec`, and its stationary window (ms).
     let indexed: Option<(Box<dyn Matcher>, i64)> = match &cfg.matcher_spec {
@@ -395,6 +417,7 @@ fn prepare_fold(
                 first_scan_t: walk.wifi.first().map(|s| s.t),
                 waypoints: walk.waypoints.clone(),
                 coverage: coverage.clone(),
+                trails: trails.clone(),
             };
             (prepared, locate_time)
         })
@@ -508,6 +531,7 @@ pub fn run_scheme(
         start: start.map(|w| w.position),
         walkable: walkable.clone(),
         coverage: Some(walk.coverage.clone()),
+        trails: walk.trails.clone(),
     };
     let mut fuser = scheme.build(&ctx).map_err(|source| EvalError::Scheme {
         scheme: scheme.name().to_string(),

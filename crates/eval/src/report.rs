@@ -131,18 +131,26 @@ impl EvalReport {
     pub fn table(&self) -> String {
         use std::fmt::Write;
         let mut out = String::new();
+        // Scheme labels may be longer than the built-in names (`[schemes.my_label]`).
+        let width = self
+            .schemes
+            .iter()
+            .map(String::len)
+            .max()
+            .unwrap_or(0)
+            .max(8);
         let mut block = |title: &str, rows: &BTreeMap<String, Summary>| {
             let _ = writeln!(out, "{title}");
             let _ = writeln!(
                 out,
-                "  {:<8} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}",
+                "  {:<width$} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}",
                 "scheme", "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max"
             );
             for s in &self.schemes {
                 if let Some(r) = rows.get(s) {
                     let _ = writeln!(
                         out,
-                        "  {:<8} {:>6} {:>7} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>8.2}",
+                        "  {:<width$} {:>6} {:>7} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>8.2}",
                         s, r.count, r.skipped, r.mean, r.rms, r.p50, r.p75, r.p95, r.max
                     );
                 }
@@ -154,6 +162,69 @@ impl EvalReport {
             }
         }
         block("pooled", &self.pooled);
+        out
+    }
+
+    /// Pooled errors by the index of the scored waypoint within its walk (0 = the first
+    /// waypoint a scheme is scored at, i.e. the first after its first estimate), indices from
+    /// `last` on pooled into the last row: per scheme, one `(count, sum of errors)` per row.
+    /// Shows how fast a scheme settles, and where its total error comes from.
+    pub fn by_waypoint_index(&self, last: usize) -> BTreeMap<String, Vec<(usize, f64)>> {
+        let mut out: BTreeMap<String, Vec<(usize, f64)>> = BTreeMap::new();
+        for s in &self.schemes {
+            let rows = out
+                .entry(s.clone())
+                .or_insert_with(|| vec![(0, 0.0); last + 1]);
+            for w in self.walks.iter().filter(|w| &w.scheme == s) {
+                for (i, (_, e)) in w.score.errors.iter().enumerate() {
+                    if e.is_finite() {
+                        let row = &mut rows[i.min(last)];
+                        row.0 += 1;
+                        row.1 += e;
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// [`Self::by_waypoint_index`] as a plain-text table: a row per index, per scheme the mean
+    /// error at that index and its share of the scheme's summed error.
+    pub fn index_table(&self, last: usize) -> String {
+        use std::fmt::Write;
+        let rows = self.by_waypoint_index(last);
+        let mut out = String::new();
+        let _ = write!(out, "  {:<6} {:>6}", "index", "count");
+        for s in &self.schemes {
+            let _ = write!(out, " {:>15}", format!("{s} mean/share"));
+        }
+        let _ = writeln!(out);
+        for i in 0..=last {
+            let label = if i == last {
+                format!("{i}+")
+            } else {
+                i.to_string()
+            };
+            let count = self
+                .schemes
+                .first()
+                .and_then(|s| rows.get(s))
+                .map_or(0, |r| r[i].0);
+            let _ = write!(out, "  {label:<6} {count:>6}");
+            for s in &self.schemes {
+                let r = &rows[s];
+                let total: f64 = r.iter().map(|x| x.1).sum();
+                let (n, sum) = r[i];
+                let mean = if n > 0 { sum / n as f64 } else { f64::NAN };
+                let share = if total > 0.0 {
+                    100.0 * sum / total
+                } else {
+                    0.0
+                };
+                let _ = write!(out, " {:>15}", format!("{mean:.2} / {share:.0}%"));
+            }
+            let _ = writeln!(out);
+        }
         out
     }
 }
@@ -198,5 +269,22 @@ mod tests {
         assert_eq!(r.floors["A"]["ekf"].count, 2);
         assert_eq!(r.floors["B"]["pdr"].count, 0);
         assert!(r.table().contains("pooled"));
+    }
+
+    #[test]
+    fn by_index_rows_add_up_to_the_pooled_figures() {
+        let walks = vec![
+            result("A", "w1", "ekf", &[1.0, 2.0, 4.0]),
+            result("B", "w2", "ekf", &[3.0]),
+        ];
+        let r = EvalReport::from_walks(vec!["ekf".into()], vec!["A".into(), "B".into()], walks);
+        let rows = &r.by_waypoint_index(1)["ekf"];
+        assert_eq!(rows, &vec![(2, 4.0), (2, 6.0)]);
+        let n: usize = rows.iter().map(|x| x.0).sum();
+        let sum: f64 = rows.iter().map(|x| x.1).sum();
+        assert_eq!(n, r.pooled["ekf"].count);
+        assert!((sum / n as f64 - r.pooled["ekf"].mean).abs() < 1e-12);
+        let t = r.index_table(1);
+        assert!(t.contains("1+") && t.contains("2.00 / 40%"), "{t}");
     }
 }

@@ -23,7 +23,9 @@
 //!
 //! Any scheme's output can be map-matched onto walkable space ([`MapMatched`], paper 004 §4),
 //! and any scheme can start from the robust average of the fixes taken while the walker
-//! stood still ([`static_start::StaticStart`], paper 001 §3.2).
+//! stood still ([`static_start::StaticStart`], paper 001 §3.2). `pmf` can also weigh its
+//! hypotheses by where training walks went ([`trails`], wipdr's own; measured without gain on
+//! the ILC floors, off by default).
 //!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free
@@ -67,6 +69,7 @@ pub mod robust_offset;
 pub mod static_start;
 pub mod synthetic;
 pub mod tcpf;
+pub mod trails;
 pub mod walkable;
 pub mod walls;
 
@@ -84,6 +87,7 @@ pub use particle::{ParticleFilter, PfConfig, WeightedPoint};
 pub use point_mass::{PointMassConfig, PointMassFilter};
 pub use robust_offset::{RobustOffset, RobustOffsetConfig};
 pub use tcpf::{Tcpf, TcpfConfig, TrustState};
+pub use trails::TrailRaster;
 pub use walkable::{MapMatched, WalkableGrid};
 pub use walls::WallIndex;
 
@@ -194,6 +198,8 @@ pub struct BuildContext {
     /// Positions of the radio map's reference points (training data), for coverage-aware
     /// schemes (`pmf`).
     pub coverage: Option<Arc<Vec<Point2>>>,
+    /// Where training walks went ([`trails::TrailRaster`]), for `pmf`'s trail prior.
+    pub trails: Option<Arc<trails::TrailRaster>>,
 }
 
 impl BuildContext {
@@ -361,12 +367,15 @@ impl SchemeConfig {
                 if ctx.walkable.is_none() {
                     tracing::warn!("pmf built without a floor plan: no walkability");
                 }
-                Box::new(PointMassFilter::new(
-                    c.clone(),
-                    ctx.walkable.clone(),
-                    ctx.coverage.clone(),
-                    ctx.start,
-                )?)
+                Box::new(
+                    PointMassFilter::new(
+                        c.clone(),
+                        ctx.walkable.clone(),
+                        ctx.coverage.clone(),
+                        ctx.start,
+                    )?
+                    .with_trails(ctx.trails.clone()),
+                )
             }
         })
     }

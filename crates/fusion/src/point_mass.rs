@@ -57,6 +57,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
+use crate::trails::TrailRaster;
 use crate::walkable::{CellClass, WalkableGrid};
 use crate::{Estimate, Fuser, FusionError, InputGuard};
 
@@ -106,6 +107,13 @@ pub struct PointMassConfig {
     pub mode_hysteresis: f64,
     /// Multiplies every step length (1 = as PDR reports).
     pub step_scale: f64,
+    /// Width (a Gaussian's standard deviation, metres) of the training trails
+    /// ([`crate::trails`]) in the per-step weight; 0 turns the trail prior off (also off when
+    /// the filter is built without trails).
+    pub trail_sd_m: f64,
+    /// Per-step weight of a hypothesis far from every training trail (relative to 1 on a
+    /// trail): the weight is `off + (1 - off) exp(-d² / 2 trail_sd_m²)`.
+    pub off_trail_likelihood: f64,
 }
 
 impl Default for PointMassConfig {
@@ -128,6 +136,8 @@ impl Default for PointMassConfig {
             mode_radius_m: 5.0,
             mode_hysteresis: 0.5,
             step_scale: 1.0,
+            trail_sd_m: 0.0,
+            off_trail_likelihood: 0.5,
         }
     }
 }
@@ -159,6 +169,7 @@ impl PointMassConfig {
             ("estimate_radius_m", self.estimate_radius_m),
             ("mode_radius_m", self.mode_radius_m),
             ("quality_distance", self.quality_distance),
+            ("trail_sd_m", self.trail_sd_m),
         ];
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
@@ -173,6 +184,7 @@ impl PointMassConfig {
             ("outside_likelihood", self.outside_likelihood),
             ("gap_likelihood", self.gap_likelihood),
             ("mode_hysteresis", self.mode_hysteresis),
+            ("off_trail_likelihood", self.off_trail_likelihood),
         ];
         for (field, v) in probabilities {
             if !(v.is_finite() && v > 0.0 && v <= 1.0) {
@@ -195,6 +207,7 @@ pub struct PointMassFilter {
     cfg: PointMassConfig,
     walkable: Option<Arc<WalkableGrid>>,
     coverage: Option<Arc<Vec<Point2>>>,
+    trails: Option<Arc<TrailRaster>>,
     /// Lattice: lower-left corner of cell (0, 0), columns, rows.
     origin: Point2,
     nx: usize,
@@ -319,6 +332,7 @@ impl PointMassFilter {
             cfg,
             walkable,
             coverage,
+            trails: None,
             origin: Point2::origin(),
             nx: 0,
             ny: 0,
@@ -355,6 +369,13 @@ impl PointMassFilter {
             f.reporting = true;
         }
         Ok(f)
+    }
+
+    /// Adds the training trails ([`crate::trails`]): with `trail_sd_m > 0`, each step weighs
+    /// every hypothesis by its position's distance to the nearest trail.
+    pub fn with_trails(mut self, trails: Option<Arc<TrailRaster>>) -> Self {
+        self.trails = trails;
+        self
     }
 
     /// Lays a uniform lattice over `[lo, hi]` plus the margin.
@@ -659,13 +680,30 @@ impl Fuser for PointMassFilter {
             self.blur();
             self.pending_drift -= 0.5 * h * h;
         }
+        let trails = self.trails.clone().filter(|_| self.cfg.trail_sd_m > 0.0);
+        let (off, trail_inv) = (
+            self.cfg.off_trail_likelihood,
+            1.0 / (2.0 * self.cfg.trail_sd_m * self.cfg.trail_sd_m),
+        );
+        let trail_weight = |pos: Point2| match &trails {
+            Some(t) => {
+                let d = t.distance(pos);
+                off + (1.0 - off) * (-d * d * trail_inv).exp()
+            }
+            None => 1.0,
+        };
         if let Some(grid) = self.walkable.clone() {
             let (unit, outside) = (self.cfg.unit_likelihood, self.cfg.outside_likelihood);
-            self.weigh(|_, pos| match grid.class_at(pos) {
-                CellClass::Walkable => 1.0,
-                CellClass::Unit => unit,
-                CellClass::Outside => outside,
+            self.weigh(|_, pos| {
+                let class = match grid.class_at(pos) {
+                    CellClass::Walkable => 1.0,
+                    CellClass::Unit => unit,
+                    CellClass::Outside => outside,
+                };
+                class * trail_weight(pos)
             });
+        } else if trails.is_some() {
+            self.weigh(|_, pos| trail_weight(pos));
         }
         self.normalise();
         self.choose_mode();
@@ -817,6 +855,47 @@ mod tests {
         let p = f.estimate().unwrap().position;
         assert!((p - truth).norm() < 2.5, "estimate {p:?} truth {truth:?}");
         assert!(f.walkable.as_ref().unwrap().class_at(p) == CellClass::Walkable);
+    }
+
+    #[test]
+    fn trails_pull_the_placement_onto_where_training_walks_went() {
+        // No plan: one fix 4 m north of the truth, then a walk east along y = 0, where a
+        // training trail runs. Without trails the estimate stays near the fix's y; with the
+        // trail prior it moves onto the trail; with `trail_sd_m = 0` the prior is off.
+        let trail = [wipdr_core::Segment {
+            a: Point2::new(-50.0, 0.0),
+            b: Point2::new(50.0, 0.0),
+        }];
+        let raster = Arc::new(TrailRaster::new(&trail, 0.5, 10.0).unwrap());
+        let run = |cfg: PointMassConfig, trails: Option<Arc<TrailRaster>>| {
+            let mut f = PointMassFilter::new(cfg, None, None, None)
+                .unwrap()
+                .with_trails(trails);
+            f.on_wifi(&fix(0, 0.0, 4.0));
+            for k in 1..=30 {
+                f.on_step(&step(500 * k, std::f64::consts::FRAC_PI_2));
+                assert!((total(&f) - 1.0).abs() < 1e-9);
+            }
+            f.estimate().unwrap().position
+        };
+        let on = PointMassConfig {
+            trail_sd_m: 1.0,
+            off_trail_likelihood: 0.5,
+            ..PointMassConfig::default()
+        };
+        let without = run(on.clone(), None);
+        let with = run(on.clone(), Some(raster.clone()));
+        let off = run(
+            PointMassConfig {
+                trail_sd_m: 0.0,
+                ..on
+            },
+            Some(raster),
+        );
+        assert!(without.y > 3.0, "{without:?}");
+        assert!(with.y.abs() < 1.0, "{with:?}");
+        assert_eq!(off, without);
+        assert!((with.x - 21.0).abs() < 1.0, "{with:?}");
     }
 
     #[test]

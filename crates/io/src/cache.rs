@@ -13,7 +13,7 @@
 //! the workspace's `target/` when run with cargo). Never put it inside `../shared`.
 
 use crate::IoError;
-use crate::floor::{self, FloorData, ReadOptions};
+use crate::floor::{self, FloorData, ReadOptions, SkippedWalk};
 use crate::geojson::LonLatBox;
 use crate::trace::{ParseReport, ParsedWalk};
 use rayon::prelude::*;
@@ -30,8 +30,8 @@ use wipdr_core::{
 pub const DEFAULT_CACHE_DIR: &str = "target/wipdr-cache";
 
 /// Bumped whenever the cached types or the reader's behaviour change.
-const FORMAT_VERSION: u32 = 5;
-const MAGIC: &[u8; 8] = b"WIPDRFC5";
+const FORMAT_VERSION: u32 = 6;
+const MAGIC: &[u8; 8] = b"WIPDRFC6";
 
 /// What [`read_floor_dir_cached_with`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -40,7 +40,9 @@ pub enum CacheOutcome {
     Hit,
     /// No usable cache file: the floor was read from source and the cache written.
     Miss,
-    /// Read from source; writing the cache failed (logged), the result is still good.
+    /// Read from source and not cached: writing the cache failed (logged), or a walk file
+    /// was skipped for a possibly transient reason ([`SkippedWalk::transient`]); the result
+    /// is still good.
     MissNotStored,
 }
 
@@ -189,7 +191,7 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
                 decode_walk(&blob)
             })
             .collect::<Option<Vec<_>>>()?;
-        let (name, dir, width, height, plan, lonlat_box, skipped_features) = head;
+        let (name, dir, width, height, plan, lonlat_box, skipped_features, skipped_walks) = head;
         Some(FloorData {
             name,
             dir,
@@ -199,6 +201,7 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
             lonlat_box,
             skipped_features,
             walks,
+            skipped_walks,
         })
     })();
     if floor.is_none() {
@@ -208,7 +211,16 @@ fn try_load(file: &Path, key: &CacheKey) -> Option<FloorData> {
 }
 
 /// The floor without its walks, as encoded in the cache.
-type FloorHead = (String, PathBuf, f64, f64, FloorPlan, LonLatBox, usize);
+type FloorHead = (
+    String,
+    PathBuf,
+    f64,
+    f64,
+    FloorPlan,
+    LonLatBox,
+    usize,
+    Vec<SkippedWalk>,
+);
 
 /// Splits a `u64`-length-prefixed blob off the front of `bytes`.
 fn take_blob<'a>(bytes: &mut &'a [u8]) -> Option<&'a [u8]> {
@@ -369,6 +381,7 @@ fn encode_body(floor: &FloorData) -> Result<Vec<u8>, String> {
         &floor.plan,
         &floor.lonlat_box,
         floor.skipped_features,
+        &floor.skipped_walks,
     );
     let head = bincode::serde::encode_to_vec(head, config()).map_err(|e| e.to_string())?;
     let walks = floor
@@ -453,6 +466,11 @@ pub fn read_floor_dir_cached_with(
         return Ok((floor, CacheOutcome::Hit));
     }
     let floor = floor::read_floor_dir_with_progress(dir, options, on_walk)?;
+    if floor.skipped_walks.iter().any(|s| s.transient) {
+        // The walk may read next time although its size and time are unchanged.
+        tracing::info!(floor = %dir.display(), "a walk file failed to open or read: cache not written");
+        return Ok((floor, CacheOutcome::MissNotStored));
+    }
     match store(&file, &key, &floor) {
         Ok(()) => Ok((floor, CacheOutcome::Miss)),
         Err(e) => {
@@ -531,7 +549,7 @@ mod tests {
         assert_eq!(o, CacheOutcome::Miss);
         // A corrupted cache file is ignored and rewritten.
         let file = cache_file(&dir, &cache);
-        std::fs::write(&file, b"WIPDRFC5garbage").unwrap();
+        std::fs::write(&file, [&MAGIC[..], b"garbage"].concat()).unwrap();
         let (e, o) = read_floor_dir_cached_with(&dir, &cache, &other, &|| {}).unwrap();
         assert_eq!(o, CacheOutcome::Miss);
         assert_eq!(e.walks, d.walks);
@@ -544,6 +562,31 @@ mod tests {
         assert_eq!(o, CacheOutcome::Miss);
         assert_eq!(f.walks, d.walks);
         assert_eq!(std::fs::read(&file).unwrap(), bytes);
+    }
+
+    #[test]
+    fn skipped_walks_survive_the_cache() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("floor");
+        let cache = tmp.path().join("cache");
+        make_floor(&dir);
+        let bad = dir.join(floor::WALKS_DIR).join("w0.txt");
+        std::fs::write(&bad, format!("1\tTYPE_WAYPOINT\t1\t2{}\n", " ".repeat(500))).unwrap();
+        let mut opts = ReadOptions::default();
+        opts.limits.max_line_bytes = 256;
+        let (a, o) = read_floor_dir_cached_with(&dir, &cache, &opts, &|| {}).unwrap();
+        assert_eq!(o, CacheOutcome::Miss);
+        assert_eq!(a.walks.len(), 1);
+        assert_eq!(a.skipped_walks.len(), 1);
+        assert_eq!(a.skipped_walks[0].path, bad);
+        assert!(!a.skipped_walks[0].transient);
+        let (b, o) = read_floor_dir_cached_with(&dir, &cache, &opts, &|| {}).unwrap();
+        assert_eq!(o, CacheOutcome::Hit);
+        assert_eq!(a, b);
+        // Strict options are another key, and fail.
+        opts.strict = true;
+        let e = read_floor_dir_cached_with(&dir, &cache, &opts, &|| {}).unwrap_err();
+        assert!(matches!(e, IoError::LineTooLong { line: 1, .. }), "{e}");
     }
 
     #[test]

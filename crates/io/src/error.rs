@@ -100,6 +100,19 @@ pub enum IoError {
         /// What is missing.
         message: String,
     },
+    /// A floor folder with walk files none of which could be read (each unreadable walk is
+    /// otherwise skipped, see [`crate::floor::SkippedWalk`]). The source is the first
+    /// walk's error in file-name order.
+    #[error("{path}: none of the {files} walk files could be read", path = path.display())]
+    NoReadableWalk {
+        /// The floor folder.
+        path: PathBuf,
+        /// How many walk files the folder has.
+        files: usize,
+        /// The error of the first walk file (by name).
+        #[source]
+        first: Box<IoError>,
+    },
     /// A value the writer refuses to write (e.g. a non-finite number).
     #[error("cannot write field {field}: {message}")]
     Unwritable {
@@ -111,6 +124,19 @@ pub enum IoError {
 }
 
 impl IoError {
+    /// This error and all its sources, joined by `": "` (e.g. `w.txt.gz: read failed after
+    /// line 0: invalid gzip header`): the whole story in one line, for logs and reports.
+    pub fn full_message(&self) -> String {
+        let mut message = self.to_string();
+        let mut source = std::error::Error::source(self);
+        while let Some(cause) = source {
+            message.push_str(": ");
+            message.push_str(&cause.to_string());
+            source = cause.source();
+        }
+        message
+    }
+
     pub(crate) fn file(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Self::File {
             path: path.into(),

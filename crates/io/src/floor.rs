@@ -22,6 +22,44 @@ pub const WALKS_DIR: &str = "path_data_files";
 pub struct ReadOptions {
     /// Resource limits per file.
     pub limits: Limits,
+    /// Fail the whole floor on the first walk file that cannot be read (by file name),
+    /// instead of skipping it into [`FloorData::skipped_walks`] (default false).
+    pub strict: bool,
+}
+
+/// A walk file that could not be read and was left out of [`FloorData::walks`] (logged with
+/// `tracing::warn!`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SkippedWalk {
+    /// The walk file.
+    pub path: PathBuf,
+    /// The whole error chain ([`IoError::full_message`]), naming the file and, where it
+    /// applies, the line, e.g. `.../w.txt.gz: line 3: longer than the limit of 64 bytes`.
+    pub error: String,
+    /// The failure may not come from the file's content: it could not be opened, or the
+    /// operating system failed a read. The cache does not store a floor with such a skip,
+    /// so the walk is tried again on the next read.
+    pub transient: bool,
+}
+
+impl SkippedWalk {
+    fn new(path: &Path, error: &IoError) -> Self {
+        let transient = match error {
+            IoError::File { .. } => true,
+            IoError::Read { source, .. } => !matches!(
+                source.kind(),
+                std::io::ErrorKind::InvalidData
+                    | std::io::ErrorKind::InvalidInput
+                    | std::io::ErrorKind::UnexpectedEof
+            ),
+            _ => false,
+        };
+        Self {
+            path: path.to_path_buf(),
+            error: error.full_message(),
+            transient,
+        }
+    }
 }
 
 /// Everything in one floor folder, parsed.
@@ -43,6 +81,11 @@ pub struct FloorData {
     pub skipped_features: usize,
     /// The walks, sorted by walk id.
     pub walks: Vec<ParsedWalk>,
+    /// The walk files that could not be read (too long a line, too many records, a corrupt
+    /// gzip stream, ...), sorted by file name; empty when every walk was read. Not empty
+    /// only when [`ReadOptions::strict`] is off and at least one walk was read.
+    #[serde(default)]
+    pub skipped_walks: Vec<SkippedWalk>,
 }
 
 impl FloorData {
@@ -132,6 +175,13 @@ pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
 
 /// Reads a whole floor folder; the walks in parallel (rayon).
 ///
+/// A walk file that cannot be read is skipped: logged with `tracing::warn!` and kept in
+/// [`FloorData::skipped_walks`] with its error. The read fails when `floor_info.json` or
+/// `geojson_map.json` is missing or bad, when the folder has walk files and none of them can
+/// be read ([`IoError::NoReadableWalk`]), and, with [`ReadOptions::strict`], on the first
+/// walk file (by name) that cannot be read. A folder without walk files reads as a floor
+/// with no walks.
+///
 /// ```no_run
 /// use wipdr_io::floor::{read_floor_dir, ReadOptions};
 /// let floor = read_floor_dir("../shared/data/ilc20/site1/F1", &ReadOptions::default()).unwrap();
@@ -165,16 +215,48 @@ pub fn read_floor_dir_with_progress(
     let (width, height) = read_floor_info(&info, limits)?;
     let plan_read = geojson::read_floor_plan(&map, width, height, limits)?;
     let files = walk_files(dir)?;
-    let mut walks = files
+    let results: Vec<Result<ParsedWalk, IoError>> = files
         .par_iter()
         .map(|f| {
             let w = trace::read_walk_with(f, limits);
             on_walk();
             w
         })
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect();
+    let mut walks = Vec::with_capacity(results.len());
+    let mut skipped_walks = Vec::new();
+    let mut first_error = None;
+    for (file, result) in files.iter().zip(results) {
+        match result {
+            Ok(walk) => walks.push(walk),
+            Err(e) if options.strict => return Err(e),
+            Err(e) => {
+                let skip = SkippedWalk::new(file, &e);
+                tracing::warn!(file = %file.display(), error = %skip.error, "walk file skipped");
+                skipped_walks.push(skip);
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    if walks.is_empty()
+        && let Some(first) = first_error
+    {
+        return Err(IoError::NoReadableWalk {
+            path: dir.to_path_buf(),
+            files: files.len(),
+            first: Box::new(first),
+        });
+    }
     walks.sort_by(|a, b| a.walk.meta.id.cmp(&b.walk.meta.id));
-    tracing::info!(floor = %dir.display(), walks = walks.len(), "floor read");
+    if !skipped_walks.is_empty() {
+        tracing::warn!(
+            floor = %dir.display(),
+            walks = walks.len(),
+            skipped = skipped_walks.len(),
+            "floor read with unreadable walk files skipped"
+        );
+    }
+    tracing::info!(floor = %dir.display(), walks = walks.len(), skipped = skipped_walks.len(), "floor read");
     Ok(FloorData {
         name: floor_name(dir),
         dir: dir.to_path_buf(),
@@ -184,6 +266,7 @@ pub fn read_floor_dir_with_progress(
         lonlat_box: plan_read.lonlat_box,
         skipped_features: plan_read.skipped_features,
         walks,
+        skipped_walks,
     })
 }
 
@@ -232,6 +315,185 @@ mod tests {
         let c = data.plan.outline[0].bbox();
         assert!((c.1.x - 30.0).abs() < 1e-9 && (c.1.y - 10.0).abs() < 1e-9 && c.0.x.abs() < 1e-9);
         assert_eq!(data.total_report().records["TYPE_WAYPOINT"], 2);
+    }
+
+    /// A floor folder `root/site/F1` with `floor_info.json` and `geojson_map.json`, and
+    /// good walks `ids` with `n` waypoints each.
+    fn fixture_floor(root: &Path, ids: &[&str], n: usize) -> PathBuf {
+        let floor = root.join("site").join("F1");
+        std::fs::create_dir_all(floor.join(WALKS_DIR)).unwrap();
+        write_floor_info(floor.join(FLOOR_INFO), 20.0, 10.0).unwrap();
+        let outline = Polygon::new(
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(20.0, 0.0),
+                Point2::new(20.0, 10.0),
+                Point2::new(0.0, 10.0),
+            ],
+            vec![],
+        )
+        .unwrap();
+        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
+        geojson::write_floor_plan(
+            floor.join(GEOJSON_MAP),
+            &plan,
+            LonLatBox::around(10.0, 50.0, 20.0, 10.0),
+        )
+        .unwrap();
+        for id in ids {
+            let mut w = Walk::default();
+            for i in 0..n {
+                w.waypoints.push(Waypoint {
+                    t: 1000 * i as i64,
+                    position: Point2::new(1.0 + i as f64, 2.0),
+                });
+            }
+            trace::write_walk_file(&w, floor.join(WALKS_DIR).join(format!("{id}.txt.gz"))).unwrap();
+        }
+        floor
+    }
+
+    /// Writes two bad walk files into `floor`: `c.txt.gz`, gzip magic bytes then garbage
+    /// (a corrupt gzip stream), and `d.txt`, a plain trace whose second line is 1000 bytes
+    /// (crosses a `max_line_bytes` of 256, far above the fixture walks' lines).
+    fn write_bad_walks(floor: &Path) -> (PathBuf, PathBuf) {
+        let corrupt = floor.join(WALKS_DIR).join("c.txt.gz");
+        let mut bytes = vec![0x1f, 0x8b, 0x08, 0x00];
+        bytes.extend_from_slice(&[0xAB; 64]);
+        std::fs::write(&corrupt, bytes).unwrap();
+        let long = floor.join(WALKS_DIR).join("d.txt");
+        std::fs::write(
+            &long,
+            format!(
+                "1000\tTYPE_WAYPOINT\t1.0\t2.0\n2000\tTYPE_WAYPOINT\t1.0\t2.0{}\n",
+                " ".repeat(1000)
+            ),
+        )
+        .unwrap();
+        (corrupt, long)
+    }
+
+    fn tight_limits() -> ReadOptions {
+        let mut options = ReadOptions::default();
+        options.limits.max_line_bytes = 256;
+        options
+    }
+
+    #[test]
+    fn bad_walks_are_skipped_counted_and_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let floor = fixture_floor(dir.path(), &["a", "b"], 3);
+        let (corrupt, long) = write_bad_walks(&floor);
+        let data = read_floor_dir(&floor, &tight_limits()).unwrap();
+        let ids: Vec<_> = data.walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+        assert_eq!(ids, ["a", "b"]);
+        assert_eq!(data.total_report().records["TYPE_WAYPOINT"], 6);
+        assert_eq!(data.skipped_walks.len(), 2, "{:?}", data.skipped_walks);
+        let (gz, line) = (&data.skipped_walks[0], &data.skipped_walks[1]);
+        assert_eq!(gz.path, corrupt);
+        assert!(gz.error.contains("c.txt.gz"), "{}", gz.error);
+        assert!(
+            gz.error.contains("read failed after line 0"),
+            "{}",
+            gz.error
+        );
+        assert!(
+            !gz.transient,
+            "a corrupt gzip stream is content: {}",
+            gz.error
+        );
+        assert_eq!(line.path, long);
+        assert!(
+            line.error
+                .contains("d.txt: line 2: longer than the limit of 256 bytes"),
+            "{}",
+            line.error
+        );
+        assert!(!line.transient);
+        // With the default limits only the corrupt gzip is skipped.
+        let data = read_floor_dir(&floor, &ReadOptions::default()).unwrap();
+        assert_eq!(data.walks.len(), 3);
+        assert_eq!(data.skipped_walks.len(), 1);
+        assert_eq!(data.skipped_walks[0].path, corrupt);
+    }
+
+    #[test]
+    fn strict_fails_on_the_first_bad_walk_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let floor = fixture_floor(dir.path(), &["a", "b"], 2);
+        let (corrupt, long) = write_bad_walks(&floor);
+        let strict = ReadOptions {
+            strict: true,
+            ..tight_limits()
+        };
+        let e = read_floor_dir(&floor, &strict).unwrap_err();
+        assert!(
+            matches!(&e, IoError::Read { path, line: 0, .. } if *path == corrupt),
+            "{e}"
+        );
+        std::fs::remove_file(&corrupt).unwrap();
+        let e = read_floor_dir(&floor, &strict).unwrap_err();
+        assert!(
+            matches!(&e, IoError::LineTooLong { path, line: 2, limit: 256 } if *path == long),
+            "{e}"
+        );
+        std::fs::remove_file(&long).unwrap();
+        let data = read_floor_dir(&floor, &strict).unwrap();
+        assert_eq!((data.walks.len(), data.skipped_walks.len()), (2, 0));
+    }
+
+    #[test]
+    fn a_floor_without_a_readable_walk_fails() {
+        let dir = tempfile::tempdir().unwrap();
+        let floor = fixture_floor(dir.path(), &[], 0);
+        // No walk files at all: a floor with no walks, as before.
+        let data = read_floor_dir(&floor, &tight_limits()).unwrap();
+        assert!(data.walks.is_empty() && data.skipped_walks.is_empty());
+        let (corrupt, _) = write_bad_walks(&floor);
+        let e = read_floor_dir(&floor, &tight_limits()).unwrap_err();
+        match &e {
+            IoError::NoReadableWalk { path, files, first } => {
+                assert_eq!((path, *files), (&floor, 2));
+                assert!(
+                    matches!(first.as_ref(), IoError::Read { path, .. } if *path == corrupt),
+                    "{first}"
+                );
+            }
+            other => panic!("expected NoReadableWalk, got {other}"),
+        }
+        let message = e.full_message();
+        assert!(
+            message.contains("none of the 2 walk files could be read"),
+            "{message}"
+        );
+        assert!(
+            message.contains("c.txt.gz: read failed after line 0: "),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn open_failures_are_transient() {
+        let path = Path::new("w.txt.gz");
+        let open = IoError::file(path, std::io::Error::from(std::io::ErrorKind::NotFound));
+        assert!(SkippedWalk::new(path, &open).transient);
+        let os_read = IoError::Read {
+            path: path.into(),
+            line: 7,
+            source: std::io::Error::from(std::io::ErrorKind::Interrupted),
+        };
+        assert!(SkippedWalk::new(path, &os_read).transient);
+        let limit = IoError::TooManyRecords {
+            path: path.into(),
+            line: 9,
+            limit: 8,
+        };
+        let skip = SkippedWalk::new(path, &limit);
+        assert!(!skip.transient);
+        assert_eq!(
+            skip.error,
+            "w.txt.gz: line 9: more than the limit of 8 records"
+        );
     }
 
     #[test]

@@ -17,7 +17,9 @@
 //!   skips unknown or malformed records, counting them by kind with line numbers in a
 //!   [`trace::ParseReport`]. [`trace::write_walk`] writes the same format deterministically.
 //! - [`floor`]: an ILC floor folder (`floor_info.json`, `geojson_map.json`,
-//!   `path_data_files/*.txt.gz`), walks read in parallel (rayon).
+//!   `path_data_files/*.txt.gz`), walks read in parallel (rayon); a walk file that cannot
+//!   be read is skipped, logged and kept with its error in [`floor::FloorData::skipped_walks`]
+//!   (or fails the floor with [`floor::ReadOptions::strict`]).
 //! - [`geojson`]: the floor plan in lon/lat degrees, mapped into metres by sending the
 //!   bounding box of the first feature (the outline) onto `[0, width] x [0, height]`
 //!   (longitude to `x`, latitude to `y`); units keep their `name`.
@@ -68,7 +70,7 @@ pub mod trace;
 
 pub use cache::read_floor_dir_cached;
 pub use error::IoError;
-pub use floor::{FloorData, ReadOptions, read_floor_dir};
+pub use floor::{FloorData, ReadOptions, SkippedWalk, read_floor_dir};
 pub use geojson::LonLatBox;
 pub use limits::Limits;
 pub use trace::{ParseReport, ParsedWalk, read_walk, read_walk_from, write_walk, write_walk_file};

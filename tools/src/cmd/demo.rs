@@ -52,6 +52,7 @@ pub fn run(args: Args) -> Result<()> {
         args.json.as_deref(),
         args.plots.as_deref(),
         1,
+        false,
     )?;
     Ok(())
 }

@@ -31,6 +31,14 @@ pub struct Args {
     /// How many walks per floor get a trajectory plot.
     #[arg(long, default_value_t = 2)]
     pub plot_walks: usize,
+    /// Plot the walks with the largest mean error of the last scheme listed (default: the
+    /// first walks of each floor).
+    #[arg(long)]
+    pub plot_worst: bool,
+    /// Also print the pooled error by waypoint index within the walk (0 = the first scored
+    /// waypoint), indices from N on in one row: how fast each scheme settles.
+    #[arg(long, value_name = "N")]
+    pub by_index: Option<usize>,
 }
 
 /// Reads an evaluation config file (TOML), or the defaults.
@@ -53,6 +61,7 @@ pub fn evaluate_and_report(
     json: Option<&Path>,
     plots: Option<&Path>,
     plot_walks: usize,
+    plot_worst: bool,
 ) -> Result<EvalReport> {
     for s in schemes {
         cfg.scheme(s)?;
@@ -102,8 +111,12 @@ pub fn evaluate_and_report(
         println!("\nwrote {}", path.display());
     }
     if let Some(dir) = plots {
-        let files =
-            eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, plot_walks)?;
+        let options = eval_plots::PlotOptions {
+            walks_per_floor: plot_walks,
+            worst_of: plot_worst.then(|| schemes.last().cloned()).flatten(),
+            ..eval_plots::PlotOptions::default()
+        };
+        let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, &options)?;
         println!("wrote {} plots into {}", files, dir.display());
     }
     Ok(report)
@@ -113,13 +126,20 @@ pub fn evaluate_and_report(
 pub fn run(args: Args) -> Result<()> {
     let cfg = load_config(args.config.as_deref())?;
     let floors = data::load_floors(&args.data)?;
-    evaluate_and_report(
+    let report = evaluate_and_report(
         &floors,
         &cfg,
         &args.schemes,
         args.json.as_deref(),
         args.plots.as_deref(),
         args.plot_walks,
+        args.plot_worst,
     )?;
+    if let Some(last) = args.by_index {
+        println!(
+            "\npooled error by waypoint index within the walk (mean m / share of the scheme's summed error)"
+        );
+        print!("{}", report.index_table(last.max(1)));
+    }
     Ok(())
 }

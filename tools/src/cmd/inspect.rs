@@ -114,6 +114,14 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
         floor.plan.walls.len(),
         floor.skipped_features
     );
+    if let Some(note) = crate::data::skipped_walks_note(&floor) {
+        println!("  {note}");
+        if !args.brief {
+            for skip in floor.skipped_walks.iter().skip(1) {
+                println!("    also skipped: {}", skip.error);
+            }
+        }
+    }
     if !args.brief {
         print_walk_table(&floor.walks);
     }

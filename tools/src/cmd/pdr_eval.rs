@@ -81,7 +81,11 @@ pub(crate) fn read_floors(
             } else {
                 wipdr_io::cache::read_floor_dir_cached(d, cache_dir, &opts)
             };
-            f.with_context(|| format!("reading floor {}", d.display()))
+            let f = f.with_context(|| format!("reading floor {}", d.display()))?;
+            if let Some(note) = crate::data::skipped_walks_note(&f) {
+                eprintln!("{note}");
+            }
+            Ok(f)
         })
         .collect()
 }
