@@ -21,6 +21,7 @@ use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::med::{MedConfig, MedMatcher};
+use wipdr_fingerprint::propagation::{PropagationConfig, extend_radio_map, fit_ap_models};
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
 use wipdr_fusion::static_start::{StaticStart, StaticStartConfig};
@@ -117,6 +118,14 @@ pub struct EvalConfig {
     /// Score only waypoints within this many metres of path from the walk's first waypoint
     /// (the "first 20 m" of issue 8's static start); `None`: the whole walk.
     pub score_first_m: Option<f64>,
+    /// Extend each fold's radio map into its coverage gaps with per-AP path-loss models
+    /// fitted on the training fingerprints ([`wipdr_fingerprint::propagation`]; synthesised
+    /// points only where the floor plan is walkable); `None` (default): off. The synthesised
+    /// points do not count as coverage for `pmf`'s gap awareness unless
+    /// `propagation_is_coverage`.
+    pub propagation: Option<PropagationConfig>,
+    /// Count the synthesised points of `propagation` as coverage (see [`PreparedWalk::coverage`]).
+    pub propagation_is_coverage: bool,
 }
 
 impl Default for EvalConfig {
@@ -145,6 +154,8 @@ impl Default for EvalConfig {
             map_matching: false,
             static_start: None,
             score_first_m: None,
+            propagation: None,
+            propagation_is_coverage: false,
         }
     }
 }
@@ -161,15 +172,30 @@ impl EvalConfig {
         }
     }
 
-    /// A key of the settings [`prepare`] depends on (equal keys, equal prepared inputs).
+    /// A key of the settings [`prepare`] depends on (equal keys, equal prepared inputs): the
+    /// whole config without the fields that only the scheme runs and the scoring read. Built
+    /// by exclusion, so that a field added later counts as a preparation input (safe: at
+    /// worst a sweep prepares more often than it needs to).
     pub fn preparation_key(&self) -> String {
-        serde_json::json!({
-            "radio_map": self.radio_map, "matcher": self.matcher, "query": self.query,
-            "med": self.med, "matcher_spec": self.matcher_spec, "clustering": self.clustering,
-            "pdr": self.pdr, "calibrate_pdr": self.calibrate_pdr,
-            "calibration": self.calibration,
-        })
-        .to_string()
+        const RUN_ONLY: [&str; 6] = [
+            "schemes",
+            "seed",
+            "map_matching",
+            "static_start",
+            "score_first_m",
+            "score_from_first_scan",
+        ];
+        match serde_json::to_value(self) {
+            Ok(serde_json::Value::Object(mut fields)) => {
+                for f in RUN_ONLY {
+                    fields.remove(f);
+                }
+                serde_json::Value::Object(fields).to_string()
+            }
+            // Not reached: the config always serialises to an object.
+            Ok(other) => other.to_string(),
+            Err(e) => format!("unserialisable config: {e}"),
+        }
     }
 }
 
@@ -302,10 +328,22 @@ fn prepare_fold(
         fold,
         source,
     };
-    let (map, report) =
+    let (mut map, report) =
         build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
     tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
-    let coverage: Arc<Vec<Point2>> = Arc::new(map.points.iter().map(|p| p.position).collect());
+    let mut coverage: Arc<Vec<Point2>> = Arc::new(map.points.iter().map(|p| p.position).collect());
+    if let Some(prop) = &cfg.propagation {
+        let models = fit_ap_models(&map, prop).map_err(fp_err)?;
+        let plan = &floor.data.plan;
+        let extended = extend_radio_map(&mut map, &models, prop, |p| {
+            plan.outline.is_empty() || plan.is_walkable(p)
+        })
+        .map_err(fp_err)?;
+        tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
+        if cfg.propagation_is_coverage {
+            coverage = Arc::new(map.points.iter().map(|p| p.position).collect());
+        }
+    }
     let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));
     let trails = if segments.is_empty() {
         None
@@ -679,4 +717,34 @@ pub fn tracks_of(
 /// The true position of a prepared walk at `t` (for plots), from its waypoints.
 pub fn truth_at(walk: &PreparedWalk, t: TimestampMs) -> Option<Point2> {
     wipdr_core::walk::interpolate_waypoints(&walk.waypoints, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preparation_key_follows_what_prepare_reads() {
+        let base = EvalConfig::default();
+        let key = base.preparation_key();
+        // Run-only settings share the prepared inputs.
+        let mut run_only = base.clone();
+        run_only.seed = 7;
+        run_only.map_matching = true;
+        run_only.score_first_m = Some(20.0);
+        run_only
+            .schemes
+            .insert("pmf".into(), SchemeConfig::default_for("pmf").unwrap());
+        assert_eq!(run_only.preparation_key(), key);
+        // Anything else changes them, including fields added after the key was written.
+        let mut propagation = base.clone();
+        propagation.propagation = Some(PropagationConfig::default());
+        assert_ne!(propagation.preparation_key(), key);
+        let mut map = base.clone();
+        map.radio_map.max_entry_age_ms = Some(12_345);
+        assert_ne!(map.preparation_key(), key);
+        let mut coverage = propagation.clone();
+        coverage.propagation_is_coverage = true;
+        assert_ne!(coverage.preparation_key(), propagation.preparation_key());
+    }
 }

@@ -68,4 +68,5 @@ pub mod cluster_search;
 pub mod kmeans;
 pub mod med;
 pub mod mixdis;
+pub mod propagation;
 pub mod wifi_stats;
