@@ -15,7 +15,7 @@
 //! let track = vec![(500, Point2::new(3.0, 4.0))];
 //! let score = score_track(&truth, &track, None);
 //! let walks = vec![WalkResult { floor: "F1".into(), walk: "w".into(), fold: 0,
-//!                               scheme: "wifi".into(), score }];
+//!                               scheme: "wifi".into(), first_scan_t: None, score }];
 //! let report = EvalReport::from_walks(vec!["wifi".into()], vec!["F1".into()], walks);
 //! assert_eq!(report.pooled["wifi"].mean, 5.0);
 //! ```

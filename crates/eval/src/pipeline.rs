@@ -650,6 +650,7 @@ pub fn run_prepared(
                 walk: pw.walk.clone(),
                 fold: pw.fold,
                 scheme: schemes[s].clone(),
+                first_scan_t: pw.first_scan_t,
                 score,
             })
         })

@@ -73,6 +73,10 @@ pub struct WalkResult {
     pub fold: usize,
     /// Scheme name.
     pub scheme: String,
+    /// Time of the walk's first Wi-Fi scan, where it has one (for the index table's
+    /// "seconds after the first scan").
+    #[serde(default)]
+    pub first_scan_t: Option<wipdr_core::TimestampMs>,
     /// The scored waypoints.
     pub score: WalkScore,
 }
@@ -188,13 +192,25 @@ impl EvalReport {
         out
     }
 
-    /// [`Self::by_waypoint_index`] as a plain-text table: a row per index, per scheme the mean
-    /// error at that index and its share of the scheme's summed error.
+    /// [`Self::by_waypoint_index`] as a plain-text table: a row per index with the median
+    /// time of its waypoints after their walk's first Wi-Fi scan (`s_median`, seconds), and
+    /// per scheme the mean error at that index and its share of the scheme's summed error.
     pub fn index_table(&self, last: usize) -> String {
         use std::fmt::Write;
         let rows = self.by_waypoint_index(last);
         let mut out = String::new();
-        let _ = write!(out, "  {:<6} {:>6}", "index", "count");
+        // Median time of the index's waypoints after their walk's first scan (first scheme).
+        let mut seconds: Vec<Vec<f64>> = vec![Vec::new(); last + 1];
+        if let Some(first) = self.schemes.first() {
+            for w in self.walks.iter().filter(|w| &w.scheme == first) {
+                if let Some(t0) = w.first_scan_t {
+                    for (i, (t, _)) in w.score.errors.iter().enumerate() {
+                        seconds[i.min(last)].push((t - t0) as f64 / 1000.0);
+                    }
+                }
+            }
+        }
+        let _ = write!(out, "  {:<6} {:>6} {:>10}", "index", "count", "s_median");
         for s in &self.schemes {
             let _ = write!(out, " {:>15}", format!("{s} mean/share"));
         }
@@ -210,7 +226,15 @@ impl EvalReport {
                 .first()
                 .and_then(|s| rows.get(s))
                 .map_or(0, |r| r[i].0);
-            let _ = write!(out, "  {label:<6} {count:>6}");
+            let median = if seconds[i].is_empty() {
+                "-".to_string()
+            } else {
+                format!(
+                    "{:.1}",
+                    wipdr_core::stats::ErrorStats::from_errors(&seconds[i]).p50
+                )
+            };
+            let _ = write!(out, "  {label:<6} {count:>6} {median:>10}");
             for s in &self.schemes {
                 let r = &rows[s];
                 let total: f64 = r.iter().map(|x| x.1).sum();
@@ -239,6 +263,7 @@ mod tests {
             walk: walk.into(),
             fold: 0,
             scheme: scheme.into(),
+            first_scan_t: Some(0),
             score: WalkScore {
                 errors: errs
                     .iter()
