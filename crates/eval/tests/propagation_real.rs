@@ -4,27 +4,21 @@
 //! (docs/results/propagation.md: site2/F2 wifi 12.77 -> 11.40 m with `best.toml`). Skips with
 //! a reason when `../shared/data` is absent.
 
-use std::path::PathBuf;
+mod common;
+
+use common::real_data;
 use std::sync::Arc;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 use wipdr_fingerprint::propagation::{PropagationConfig, extend_radio_map, fit_ap_models};
 use wipdr_fingerprint::walk_map::build_from_walks;
-use wipdr_io::cache::{DEFAULT_CACHE_DIR, read_floor_dir_cached};
+use wipdr_io::cache::read_floor_dir_cached;
 use wipdr_io::floor::ReadOptions;
 
 /// Site2/F2 of the ILC data, or `None` (the reason printed) without the data.
 fn site2_f2() -> Option<FloorInput> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20/site2/F2"
-    ));
-    if !dir.is_dir() {
-        println!("skipped: {} not found", dir.display());
-        return None;
-    }
-    let cache =
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
-    let data = read_floor_dir_cached(&dir, &cache, &ReadOptions::default()).unwrap();
+    let (root, cache) = real_data()?;
+    let data =
+        read_floor_dir_cached(root.join("site2/F2"), &cache, &ReadOptions::default()).unwrap();
     Some(FloorInput {
         label: "site2/F2".into(),
         data: Arc::new(data),

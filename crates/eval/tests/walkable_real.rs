@@ -2,25 +2,12 @@
 //! space, inside a unit, or outside the outline (what the walkability likelihood of `pmf` and
 //! map matching may assume). Skips with a reason when `../shared/data` is absent.
 
-use std::path::PathBuf;
-use wipdr_fusion::walkable::{CellClass, WalkableGrid};
-use wipdr_io::cache::{DEFAULT_CACHE_DIR, read_floor_dir_cached};
-use wipdr_io::floor::ReadOptions;
+mod common;
 
-/// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
-fn real_data() -> Option<(PathBuf, PathBuf)> {
-    let root = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20"
-    ));
-    if !root.is_dir() {
-        println!("skipped: {} not found", root.display());
-        return None;
-    }
-    let cache =
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../")).join(DEFAULT_CACHE_DIR);
-    Some((root, cache))
-}
+use common::real_data;
+use wipdr_fusion::walkable::{CellClass, WalkableGrid};
+use wipdr_io::cache::read_floor_dir_cached;
+use wipdr_io::floor::ReadOptions;
 
 #[test]
 fn truth_is_mostly_walkable_on_the_real_floors() {

@@ -1,4 +1,6 @@
-//! Shared by the eval integration tests: the committed synthetic fixture floor.
+//! Shared by the eval integration tests: the committed synthetic fixture floor, and the real
+//! ILC floors when `../shared/data` exists. Each test binary uses only some of these.
+#![allow(dead_code)]
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -19,4 +21,19 @@ pub fn fixture_floor() -> FloorInput {
         label: "fixture".into(),
         data: Arc::new(data),
     }
+}
+
+/// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
+pub fn real_data() -> Option<(PathBuf, PathBuf)> {
+    let root = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ilc20"
+    ));
+    if !root.is_dir() {
+        println!("skipped: {} not found", root.display());
+        return None;
+    }
+    let cache = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../"))
+        .join(wipdr_io::cache::DEFAULT_CACHE_DIR);
+    Some((root, cache))
 }
