@@ -67,38 +67,22 @@ pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wipdr_core::{FloorPlan, Point2, Polygon, Walk, Waypoint};
-    use wipdr_io::{LonLatBox, floor, geojson, trace};
+    use wipdr_core::{FloorPlan, Point2, Walk, Waypoint};
+    use wipdr_io::{LonLatBox, floor};
 
     #[test]
     fn notes_skipped_walks_only_when_there_are_some() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("site").join("F2");
-        std::fs::create_dir_all(dir.join(floor::WALKS_DIR)).unwrap();
-        floor::write_floor_info(dir.join(floor::FLOOR_INFO), 20.0, 10.0).unwrap();
-        let outline = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(20.0, 0.0),
-                Point2::new(20.0, 10.0),
-                Point2::new(0.0, 10.0),
-            ],
-            vec![],
-        )
-        .unwrap();
-        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
-        geojson::write_floor_plan(
-            dir.join(floor::GEOJSON_MAP),
-            &plan,
-            LonLatBox::around(8.0, 47.0, 20.0, 10.0),
-        )
-        .unwrap();
         let mut walk = Walk::default();
+        walk.meta.id = "good".into();
         walk.waypoints.push(Waypoint {
             t: 1000,
             position: Point2::new(1.0, 5.0),
         });
-        trace::write_walk_file(&walk, dir.join(floor::WALKS_DIR).join("good.txt.gz")).unwrap();
+        let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+        let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);
+        floor::write_floor_dir(&dir, &plan, bbox, [&walk]).unwrap();
         let read = || floor::read_floor_dir(&dir, &ReadOptions::default()).unwrap();
         assert_eq!(skipped_walks_note(&read()), None);
         // Gzip magic bytes, then garbage: a corrupt stream.

@@ -217,6 +217,35 @@ impl FloorPlan {
         })
     }
 
+    /// A `width` x `height` rectangle `[0, width] x [0, height]` as the only outline
+    /// polygon, with no units (its walls are the rectangle's four sides): handy for tests
+    /// and synthetic floors.
+    ///
+    /// ```
+    /// use wipdr_core::{FloorPlan, Point2};
+    /// let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+    /// assert!(plan.is_walkable(Point2::new(19.0, 1.0)));
+    /// assert!(!plan.inside_outline(Point2::new(21.0, 1.0)));
+    /// assert_eq!(plan.walls.len(), 4);
+    /// assert!(FloorPlan::rectangle(0.0, 10.0).is_err());
+    /// assert!(FloorPlan::rectangle(f64::NAN, 10.0).is_err());
+    /// ```
+    pub fn rectangle(width: f64, height: f64) -> Result<Self, CoreError> {
+        if !(width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0) {
+            return Err(CoreError::InvalidFloorSize { width, height });
+        }
+        let outline = Polygon::new(
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(width, 0.0),
+                Point2::new(width, height),
+                Point2::new(0.0, height),
+            ],
+            vec![],
+        )?;
+        Self::new(width, height, vec![outline], vec![])
+    }
+
     /// Whether `p` lies inside the floor outline.
     pub fn inside_outline(&self, p: Point2) -> bool {
         self.outline.iter().any(|o| o.contains(p))

@@ -484,28 +484,12 @@ pub fn read_floor_dir_cached_with(
 mod tests {
     use super::*;
     use crate::{geojson, trace};
-    use wipdr_core::{FloorPlan, Point2, Polygon, Walk, Waypoint};
+    use wipdr_core::{FloorPlan, Point2, Walk, Waypoint};
 
     fn make_floor(dir: &Path) {
-        std::fs::create_dir_all(dir.join(floor::WALKS_DIR)).unwrap();
-        floor::write_floor_info(dir.join(floor::FLOOR_INFO), 10.0, 10.0).unwrap();
-        let sq = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(10.0, 0.0),
-                Point2::new(10.0, 10.0),
-                Point2::new(0.0, 10.0),
-            ],
-            vec![],
-        )
-        .unwrap();
-        let plan = FloorPlan::new(10.0, 10.0, vec![sq], vec![]).unwrap();
-        geojson::write_floor_plan(
-            dir.join(floor::GEOJSON_MAP),
-            &plan,
-            geojson::LonLatBox::around(1.0, 1.0, 10.0, 10.0),
-        )
-        .unwrap();
+        let plan = FloorPlan::rectangle(10.0, 10.0).unwrap();
+        let bbox = geojson::LonLatBox::around(1.0, 1.0, 10.0, 10.0);
+        floor::write_floor_dir(dir, &plan, bbox, []).unwrap();
         write_walk(dir, "w1", 1);
     }
 

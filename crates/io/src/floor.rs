@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use wipdr_core::FloorPlan;
+use wipdr_core::{FloorPlan, Walk};
 
 /// The floor size file.
 pub const FLOOR_INFO: &str = "floor_info.json";
@@ -147,6 +147,72 @@ pub fn write_floor_info(path: impl AsRef<Path>, width: f64, height: f64) -> Resu
     std::fs::write(path, text).map_err(|e| IoError::file(path, e))
 }
 
+/// Writes a floor folder in the ILC layout, creating `dir` if needed: `floor_info.json`
+/// (the plan's width and height), `geojson_map.json` (the plan placed in `lonlat_box`, see
+/// [`geojson::write_floor_plan`]) and one `path_data_files/<walk id>.txt.gz` per walk
+/// ([`trace::write_walk_file`]), the file named from `walk.meta.id`. Deterministic output,
+/// so the same inputs give byte-identical files; [`read_floor_dir`] reads it back.
+///
+/// Every walk id is checked before anything is written: an empty id, one with a path
+/// separator (`/`, `\`) or a NUL, `.` or `..`, or an id given twice is refused with
+/// [`IoError::Unwritable`] naming the id.
+///
+/// ```
+/// use wipdr_core::{FloorPlan, Point2, Walk, Waypoint};
+/// use wipdr_io::floor::{read_floor_dir, write_floor_dir, ReadOptions};
+/// use wipdr_io::LonLatBox;
+///
+/// let tmp = tempfile::tempdir().unwrap();
+/// let dir = tmp.path().join("site").join("F1");
+/// let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+/// let mut walk = Walk::default();
+/// walk.meta.id = "w1".into();
+/// walk.waypoints.push(Waypoint { t: 1_000, position: Point2::new(3.0, 4.0) });
+/// write_floor_dir(&dir, &plan, LonLatBox::around(8.0, 47.0, 20.0, 10.0), [&walk]).unwrap();
+///
+/// let floor = read_floor_dir(&dir, &ReadOptions::default()).unwrap();
+/// assert_eq!((floor.name.as_str(), floor.width, floor.height), ("site/F1", 20.0, 10.0));
+/// assert_eq!(floor.walks.len(), 1);
+/// assert_eq!(floor.walks[0].walk.meta.id, "w1");
+/// assert_eq!(floor.walks[0].walk.waypoints, walk.waypoints);
+/// ```
+pub fn write_floor_dir<'w>(
+    dir: impl AsRef<Path>,
+    plan: &FloorPlan,
+    lonlat_box: LonLatBox,
+    walks: impl IntoIterator<Item = &'w Walk>,
+) -> Result<(), IoError> {
+    let dir = dir.as_ref();
+    let walks: Vec<&Walk> = walks.into_iter().collect();
+    let mut ids = std::collections::BTreeSet::new();
+    for (i, walk) in walks.iter().enumerate() {
+        let id = walk.meta.id.as_str();
+        let problem = if id.is_empty() || id == "." || id == ".." {
+            Some("is not a file name")
+        } else if id.contains(['/', '\\', '\0']) {
+            Some("contains a path separator or a NUL")
+        } else if !ids.insert(id) {
+            Some("is used by an earlier walk")
+        } else {
+            None
+        };
+        if let Some(problem) = problem {
+            return Err(IoError::Unwritable {
+                field: format!("walks[{i}].meta.id"),
+                message: format!("walk id {id:?} {problem}"),
+            });
+        }
+    }
+    let walks_dir = dir.join(WALKS_DIR);
+    std::fs::create_dir_all(&walks_dir).map_err(|e| IoError::file(&walks_dir, e))?;
+    write_floor_info(dir.join(FLOOR_INFO), plan.width, plan.height)?;
+    geojson::write_floor_plan(dir.join(GEOJSON_MAP), plan, lonlat_box)?;
+    for walk in walks {
+        trace::write_walk_file(walk, walks_dir.join(format!("{}.txt.gz", walk.meta.id)))?;
+    }
+    Ok(())
+}
+
 /// The walk traces of a floor folder (`path_data_files/*.txt` and `*.txt.gz`, or the folder
 /// itself when it has no `path_data_files`), sorted by file name.
 pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
@@ -273,39 +339,33 @@ pub fn read_floor_dir_with_progress(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wipdr_core::{Point2, Polygon, Walk, Waypoint};
+    use wipdr_core::{Point2, Waypoint};
 
     #[test]
     fn floor_folder_round_trip() {
         let dir = tempfile::tempdir().unwrap();
         let floor = dir.path().join("siteX").join("F9");
-        std::fs::create_dir_all(floor.join(WALKS_DIR)).unwrap();
-        write_floor_info(floor.join(FLOOR_INFO), 30.0, 10.0).unwrap();
-        let outline = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(30.0, 0.0),
-                Point2::new(30.0, 10.0),
-                Point2::new(0.0, 10.0),
-            ],
-            vec![],
-        )
-        .unwrap();
-        let plan = FloorPlan::new(30.0, 10.0, vec![outline], vec![]).unwrap();
-        geojson::write_floor_plan(
-            floor.join(GEOJSON_MAP),
+        let walks: Vec<Walk> = ["b", "a"]
+            .iter()
+            .enumerate()
+            .map(|(i, id)| {
+                let mut w = Walk::default();
+                w.meta.id = id.to_string();
+                w.waypoints.push(Waypoint {
+                    t: 10 + i as i64,
+                    position: Point2::new(1.0 + i as f64, 2.0),
+                });
+                w
+            })
+            .collect();
+        let plan = FloorPlan::rectangle(30.0, 10.0).unwrap();
+        write_floor_dir(
+            &floor,
             &plan,
             LonLatBox::around(10.0, 50.0, 30.0, 10.0),
+            &walks,
         )
         .unwrap();
-        for (i, id) in ["b", "a"].iter().enumerate() {
-            let mut w = Walk::default();
-            w.waypoints.push(Waypoint {
-                t: 10 + i as i64,
-                position: Point2::new(1.0 + i as f64, 2.0),
-            });
-            trace::write_walk_file(&w, floor.join(WALKS_DIR).join(format!("{id}.txt.gz"))).unwrap();
-        }
         let data = read_floor_dir(&floor, &ReadOptions::default()).unwrap();
         assert_eq!(data.name, "siteX/F9");
         assert_eq!((data.width, data.height), (30.0, 10.0));
@@ -321,35 +381,28 @@ mod tests {
     /// good walks `ids` with `n` waypoints each.
     fn fixture_floor(root: &Path, ids: &[&str], n: usize) -> PathBuf {
         let floor = root.join("site").join("F1");
-        std::fs::create_dir_all(floor.join(WALKS_DIR)).unwrap();
-        write_floor_info(floor.join(FLOOR_INFO), 20.0, 10.0).unwrap();
-        let outline = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(20.0, 0.0),
-                Point2::new(20.0, 10.0),
-                Point2::new(0.0, 10.0),
-            ],
-            vec![],
-        )
-        .unwrap();
-        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
-        geojson::write_floor_plan(
-            floor.join(GEOJSON_MAP),
+        let walks: Vec<Walk> = ids
+            .iter()
+            .map(|id| {
+                let mut w = Walk::default();
+                w.meta.id = id.to_string();
+                for i in 0..n {
+                    w.waypoints.push(Waypoint {
+                        t: 1000 * i as i64,
+                        position: Point2::new(1.0 + i as f64, 2.0),
+                    });
+                }
+                w
+            })
+            .collect();
+        let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+        write_floor_dir(
+            &floor,
             &plan,
             LonLatBox::around(10.0, 50.0, 20.0, 10.0),
+            &walks,
         )
         .unwrap();
-        for id in ids {
-            let mut w = Walk::default();
-            for i in 0..n {
-                w.waypoints.push(Waypoint {
-                    t: 1000 * i as i64,
-                    position: Point2::new(1.0 + i as f64, 2.0),
-                });
-            }
-            trace::write_walk_file(&w, floor.join(WALKS_DIR).join(format!("{id}.txt.gz"))).unwrap();
-        }
         floor
     }
 
@@ -470,6 +523,49 @@ mod tests {
             message.contains("c.txt.gz: read failed after line 0: "),
             "{message}"
         );
+    }
+
+    #[test]
+    fn bad_walk_ids_are_refused_before_writing() {
+        let tmp = tempfile::tempdir().unwrap();
+        let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+        let bbox = LonLatBox::around(10.0, 50.0, 20.0, 10.0);
+        let walk = |id: &str| {
+            let mut w = Walk::default();
+            w.meta.id = id.into();
+            w
+        };
+        let good = walk("ok");
+        for (k, (bad, problem)) in [
+            ("", "is not a file name"),
+            ("..", "is not a file name"),
+            ("../escape", "contains a path separator"),
+            ("sub/w", "contains a path separator"),
+            ("sub\\w", "contains a path separator"),
+            ("ok", "is used by an earlier walk"),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let floor = tmp.path().join(format!("floor{k}"));
+            let bad_walk = walk(bad);
+            let e = write_floor_dir(&floor, &plan, bbox, [&good, &bad_walk]).unwrap_err();
+            match &e {
+                IoError::Unwritable { field, message } => {
+                    assert_eq!(field, "walks[1].meta.id");
+                    assert!(message.contains(&format!("{bad:?}")), "{message}");
+                    assert!(message.contains(problem), "{message}");
+                }
+                other => panic!("expected Unwritable for {bad:?}, got {other}"),
+            }
+            assert!(!floor.exists(), "nothing is written for {bad:?}");
+        }
+        assert!(!tmp.path().join("escape.txt.gz").exists());
+        // No walks at all: a floor folder with an empty walk folder.
+        let floor = tmp.path().join("empty");
+        write_floor_dir(&floor, &plan, bbox, []).unwrap();
+        let data = read_floor_dir(&floor, &ReadOptions::default()).unwrap();
+        assert!(data.walks.is_empty() && floor.join(WALKS_DIR).is_dir());
     }
 
     #[test]

@@ -1,9 +1,9 @@
 //! Writing a generated floor to disk in the ILC layout, so that the real readers read it:
 //!
 //! ```text
-//! <out>/<floor>/path_data_files/<walk id>.txt.gz   walks (wipdr_io::trace::write_walk_file)
-//! <out>/<floor>/floor_info.json                    width and height (wipdr_io::floor)
-//! <out>/<floor>/geojson_map.json                   the plan in degrees (wipdr_io::geojson)
+//! <out>/<floor>/path_data_files/<walk id>.txt.gz   walks                 } the ILC layout,
+//! <out>/<floor>/floor_info.json                    width and height      } written by
+//! <out>/<floor>/geojson_map.json                   the plan in degrees   } wipdr_io::floor::write_floor_dir
 //! <out>/<floor>/survey/train.csv, test.csv         survey radio map, benchmark layout
 //! <out>/<floor>/truth/<walk id>.json               per-walk truth (WalkTruth)
 //! <out>/<floor>/truth/world.json                   seed, config, access points, disturbances
@@ -84,20 +84,17 @@ pub fn write_survey(dir: &Path, survey: &SurveyMap) -> Result<(), SimError> {
 pub fn write_floor(sim: &SimFloor, out: &Path) -> Result<PathBuf, SimError> {
     let cfg = &sim.world.config;
     let dir = out.join(&cfg.floor_name);
-    let walks_dir = dir.join("path_data_files");
-    let truth_dir = dir.join("truth");
-    for d in [&dir, &walks_dir, &truth_dir] {
-        std::fs::create_dir_all(d).map_err(io_err(d))?;
-    }
     let plan = &sim.world.floor.plan;
-    wipdr_io::floor::write_floor_info(dir.join("floor_info.json"), plan.width, plan.height)?;
     let (lon, lat) = GEO_ORIGIN_LON_LAT;
     let bbox = LonLatBox::around(lon, lat, plan.width, plan.height);
-    wipdr_io::geojson::write_floor_plan(dir.join("geojson_map.json"), plan, bbox)?;
+    wipdr_io::floor::write_floor_dir(&dir, plan, bbox, sim.walks.iter().map(|w| &w.walk))?;
+    let truth_dir = dir.join("truth");
+    std::fs::create_dir_all(&truth_dir).map_err(io_err(&truth_dir))?;
     for w in &sim.walks {
-        let id = &w.walk.meta.id;
-        wipdr_io::trace::write_walk_file(&w.walk, walks_dir.join(format!("{id}.txt.gz")))?;
-        write_json(&truth_dir.join(format!("{id}.json")), &w.truth)?;
+        write_json(
+            &truth_dir.join(format!("{}.json", w.walk.meta.id)),
+            &w.truth,
+        )?;
     }
     write_json(
         &truth_dir.join("world.json"),

@@ -313,41 +313,25 @@ fn print_report(r: &ParseReport, with_lines: bool) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wipdr_core::{FloorPlan, Point2, Polygon, Waypoint};
-    use wipdr_io::{LonLatBox, floor, geojson};
+    use wipdr_core::{FloorPlan, Point2, Waypoint};
+    use wipdr_io::{LonLatBox, floor};
 
     #[test]
     fn inspects_a_floor_and_a_walk() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("site").join("F1");
-        std::fs::create_dir_all(dir.join(floor::WALKS_DIR)).unwrap();
-        floor::write_floor_info(dir.join(floor::FLOOR_INFO), 20.0, 10.0).unwrap();
-        let outline = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(20.0, 0.0),
-                Point2::new(20.0, 10.0),
-                Point2::new(0.0, 10.0),
-            ],
-            vec![],
-        )
-        .unwrap();
-        let plan = FloorPlan::new(20.0, 10.0, vec![outline], vec![]).unwrap();
-        geojson::write_floor_plan(
-            dir.join(floor::GEOJSON_MAP),
-            &plan,
-            LonLatBox::around(8.0, 47.0, 20.0, 10.0),
-        )
-        .unwrap();
         let mut walk = Walk::default();
+        walk.meta.id = "w".into();
         for i in 0..3 {
             walk.waypoints.push(Waypoint {
                 t: 1000 * i,
                 position: Point2::new(1.0 + i as f64, 5.0),
             });
         }
+        let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
+        let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);
+        floor::write_floor_dir(&dir, &plan, bbox, [&walk]).unwrap();
         let walk_file = dir.join(floor::WALKS_DIR).join("w.txt.gz");
-        trace::write_walk_file(&walk, &walk_file).unwrap();
         let args = |paths: Vec<PathBuf>, no_cache| Args {
             paths,
             no_cache,
