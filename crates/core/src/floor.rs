@@ -96,6 +96,27 @@ impl Polygon {
         Ok(Self { exterior, holes })
     }
 
+    /// The axis-aligned rectangle with corners `(x0, y0)` and `(x1, y1)`, counter-clockwise
+    /// from `(x0, y0)` when `x0 < x1` and `y0 < y1`, no holes. Errors on a non-finite corner.
+    ///
+    /// ```
+    /// use wipdr_core::{Point2, Polygon};
+    /// let r = Polygon::rectangle(0.0, 0.0, 4.0, 2.0).unwrap();
+    /// assert!(r.contains(Point2::new(3.0, 1.0)) && !r.contains(Point2::new(5.0, 1.0)));
+    /// assert!(Polygon::rectangle(0.0, 0.0, f64::NAN, 2.0).is_err());
+    /// ```
+    pub fn rectangle(x0: f64, y0: f64, x1: f64, y1: f64) -> Result<Self, CoreError> {
+        Self::new(
+            vec![
+                Point2::new(x0, y0),
+                Point2::new(x1, y0),
+                Point2::new(x1, y1),
+                Point2::new(x0, y1),
+            ],
+            vec![],
+        )
+    }
+
     /// Even-odd point-in-polygon test (inside the exterior, outside every hole).
     ///
     /// ```
@@ -234,15 +255,7 @@ impl FloorPlan {
         if !(width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0) {
             return Err(CoreError::InvalidFloorSize { width, height });
         }
-        let outline = Polygon::new(
-            vec![
-                Point2::new(0.0, 0.0),
-                Point2::new(width, 0.0),
-                Point2::new(width, height),
-                Point2::new(0.0, height),
-            ],
-            vec![],
-        )?;
+        let outline = Polygon::rectangle(0.0, 0.0, width, height)?;
         Self::new(width, height, vec![outline], vec![])
     }
 
@@ -273,17 +286,7 @@ mod tests {
     use super::*;
 
     fn square(x0: f64, y0: f64, s: f64) -> Polygon {
-        Polygon::new(
-            vec![
-                Point2::new(x0, y0),
-                Point2::new(x0 + s, y0),
-                Point2::new(x0 + s, y0 + s),
-                Point2::new(x0, y0 + s),
-                Point2::new(x0, y0),
-            ],
-            vec![],
-        )
-        .unwrap()
+        Polygon::rectangle(x0, y0, x0 + s, y0 + s).unwrap()
     }
 
     #[test]

@@ -997,16 +997,7 @@ mod tests {
     }
 
     fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
-        Polygon::new(
-            vec![
-                Point2::new(x0, y0),
-                Point2::new(x1, y0),
-                Point2::new(x1, y1),
-                Point2::new(x0, y1),
-            ],
-            vec![],
-        )
-        .unwrap()
+        Polygon::rectangle(x0, y0, x1, y1).unwrap()
     }
 
     /// A 60 m x 40 m floor whose only walkable space is a 3 m wide ring corridor around

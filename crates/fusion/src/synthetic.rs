@@ -119,16 +119,7 @@ pub enum Input {
 }
 
 fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
-    Polygon::new(
-        vec![
-            Point2::new(x0, y0),
-            Point2::new(x1, y0),
-            Point2::new(x1, y1),
-            Point2::new(x0, y1),
-        ],
-        vec![],
-    )
-    .expect("a rectangle has four vertices")
+    Polygon::rectangle(x0, y0, x1, y1).expect("finite corners")
 }
 
 fn normal(sd: f64) -> Normal<f64> {

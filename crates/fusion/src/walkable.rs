@@ -368,16 +368,7 @@ mod tests {
     use wipdr_core::Unit;
 
     fn square(x0: f64, y0: f64, s: f64) -> Polygon {
-        Polygon::new(
-            vec![
-                Point2::new(x0, y0),
-                Point2::new(x0 + s, y0),
-                Point2::new(x0 + s, y0 + s),
-                Point2::new(x0, y0 + s),
-            ],
-            vec![],
-        )
-        .unwrap()
+        Polygon::rectangle(x0, y0, x0 + s, y0 + s).unwrap()
     }
 
     fn plan() -> FloorPlan {

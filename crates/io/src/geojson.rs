@@ -430,16 +430,7 @@ mod tests {
     use super::*;
 
     fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
-        Polygon::new(
-            vec![
-                Point2::new(x0, y0),
-                Point2::new(x1, y0),
-                Point2::new(x1, y1),
-                Point2::new(x0, y1),
-            ],
-            vec![],
-        )
-        .unwrap()
+        Polygon::rectangle(x0, y0, x1, y1).unwrap()
     }
 
     fn sample_plan() -> FloorPlan {
