@@ -75,9 +75,32 @@ pub struct WifiEntry {
 }
 
 impl WifiEntry {
+    /// An entry with only what a matcher needs: the AP and its RSSI (dBm). The SSID is empty,
+    /// the frequency unknown (0) and the entry counts as seen at the scan's time (it is never
+    /// stale: `last_seen_ms = i64::MAX` is read as "no age known" by the staleness filter).
+    ///
+    /// ```
+    /// use wipdr_core::{Bssid, WifiEntry};
+    /// let e = WifiEntry::new(Bssid(0x00aa_bbcc_ddee), -61.0);
+    /// assert_eq!(e.age_ms(1_000), 0);
+    /// ```
+    pub fn new(bssid: Bssid, rssi_dbm: f64) -> Self {
+        Self {
+            bssid,
+            ssid: String::new(),
+            rssi_dbm,
+            frequency_mhz: 0,
+            last_seen_ms: TimestampMs::MAX,
+        }
+    }
+
     /// Age of the entry relative to the scan time `scan_t` (ms, >= 0 for sane data).
+    /// An entry without a last-seen time ([`WifiEntry::new`]) has age 0.
     pub fn age_ms(&self, scan_t: TimestampMs) -> i64 {
-        scan_t - self.last_seen_ms
+        if self.last_seen_ms == TimestampMs::MAX {
+            return 0;
+        }
+        scan_t.saturating_sub(self.last_seen_ms)
     }
 }
 

@@ -6,6 +6,12 @@
 //! per floor and pooled ([`report`]). Fusion schemes are started from the first Wi-Fi fix; the
 //! PDR-only baseline from the true first waypoint (labelled so).
 //!
+//! Every run goes through `wipdr-positioning`'s pipeline: a test walk's raw samples are
+//! streamed through the [`Positioner`](wipdr_positioning::Positioner)'s front end (PDR +
+//! stream matcher) once ([`fold::FoldModel::prepare_walk`]), and each scheme's fusion stage
+//! replays the recorded events ([`pipeline::run_scheme`]); [`pipeline::locate`] streams a walk
+//! through a whole `Positioner` and gives the same track.
+//!
 //! ```
 //! use wipdr_core::{Point2, Waypoint};
 //! use wipdr_eval::report::{EvalReport, WalkResult};
@@ -20,6 +26,8 @@
 //! assert_eq!(report.pooled["wifi"].mean, 5.0);
 //! ```
 
+pub mod config;
+pub mod fold;
 pub mod pipeline;
 pub mod report;
 pub mod scoring;

@@ -10,26 +10,22 @@
 //! is the PDR-only baseline, which by the protocol starts at the true first waypoint and is
 //! labelled so.
 
+use crate::fold::FoldModel;
 use crate::report::{EvalReport, WalkResult};
 use crate::scoring::{Track, score_track};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 use std::sync::Arc;
 use thiserror::Error;
-use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
-use wipdr_fingerprint::distance::{Metric, SharedAp};
-use wipdr_fingerprint::med::{MedConfig, MedMatcher};
-use wipdr_fingerprint::propagation::{PropagationConfig, extend_radio_map, fit_ap_models};
-use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
-use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter};
-use wipdr_fusion::static_start::{StaticStart, StaticStartConfig};
-use wipdr_fusion::trails::{TrailRaster, trails_of};
-use wipdr_fusion::{BuildContext, MapMatched, SchemeConfig, WalkableGrid, WallIndex};
+use wipdr_fusion::SchemeConfig;
+use wipdr_fusion::replay::{FusionInput, merged};
+use wipdr_fusion::trails::TrailRaster;
 use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
 use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_positioning::{
+    FusionStage, PositionEstimate, Positioner, Site, samples_of, stream_seed, track_of,
+};
 
 /// Errors of an evaluation.
 #[derive(Debug, Error)]
@@ -57,6 +53,38 @@ pub enum EvalError {
     /// A sweep could not be set up or recorded.
     #[error("sweep: {0}")]
     Sweep(String),
+    /// A config file could not be read (syntax, unknown or removed field, bad value).
+    #[error("config {origin}: {reason}")]
+    Config {
+        /// Where the config came from (a file path).
+        origin: String,
+        /// What is wrong, with the field path.
+        reason: String,
+    },
+    /// A config value is out of range.
+    #[error("{path}: {reason}")]
+    InvalidConfig {
+        /// Dotted path of the field.
+        path: String,
+        /// What is wrong, with the value given.
+        reason: String,
+    },
+    /// The positioning pipeline could not be built.
+    #[error("floor {floor}: {source}")]
+    Positioning {
+        /// Floor label.
+        floor: String,
+        /// Cause.
+        source: wipdr_positioning::PositioningError,
+    },
+    /// A walk asked for is not on the floor.
+    #[error("floor {floor}: no walk {walk:?}")]
+    UnknownWalk {
+        /// Floor label.
+        floor: String,
+        /// Walk id asked for.
+        walk: String,
+    },
     /// A scheme could not be built from its config.
     #[error("scheme {scheme}: {source}")]
     Scheme {
@@ -67,137 +95,7 @@ pub enum EvalError {
     },
 }
 
-/// Everything an evaluation can be told; every field has a default. Deserialises from TOML
-/// (`wipdr eval --config FILE.toml`); the sweep tool addresses its fields by dotted path
-/// (`radio_map.max_entry_age_ms`, `matcher.k`, `schemes.ekf.r_wifi`, …).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct EvalConfig {
-    /// How training walks become a radio map.
-    pub radio_map: WalkMapConfig,
-    /// The matcher.
-    pub matcher: KnnConfig,
-    /// Online filtering of test scans.
-    pub query: QueryFilter,
-    /// Use the multi-scan MED matcher (paper 004 eq. 11, Euclidean form) on the same radio
-    /// map instead of `matcher`, fed with the PDR displacement between scans. `None`
-    /// (default): single-scan `matcher`.
-    pub med: Option<MedConfig>,
-    /// Use an indexed matcher instead of searching `matcher` by brute force: `apc` (cluster
-    /// search, paper 001 §2.3) or `apindex` (AP index, paper 002 §3.2), optionally with
-    /// settings `NAME:key=value,...` (`wipdr_fingerprint::cluster_search::apply_spec`, e.g.
-    /// `"apc:sim=signal,clusters=3"`, `"apindex:moving=-80"`). Built per fold on the fold's
-    /// radio map; its inner WKNN takes `matcher`'s k, weighting, distance and representation
-    /// (the spec's `k`, `metric`, `rep` override them). `apindex` is given the walker's motion
-    /// from the PDR steps (`wipdr_fingerprint::ap_index::motion_at`: moving when a step came
-    /// within `stationary_after_ms`, default 2 s, before the scan). `med` takes precedence.
-    /// `None` (default): brute force.
-    pub matcher_spec: Option<String>,
-    /// Further settings of the indexed matchers (`[clustering.apindex]`, `[clustering.apc]`:
-    /// thresholds, clustering), under `matcher_spec`'s keys.
-    pub clustering: wipdr_fingerprint::cluster_search::ClusteringMatchersConfig,
-    /// The PDR pipeline (before calibration).
-    pub pdr: PdrConfig,
-    /// Whether step length (and heading offset) are fitted on each fold's training walks.
-    pub calibrate_pdr: bool,
-    /// How the calibration fits.
-    pub calibration: CalibrationConfig,
-    /// Score only waypoints after the walk's first Wi-Fi scan, for every scheme (as the
-    /// reference pipeline does); earlier ones are counted as skipped.
-    pub score_from_first_scan: bool,
-    /// Seed of the random schemes (mixed with each walk's id).
-    pub seed: u64,
-    /// Scheme configs by name; a scheme not listed runs with its defaults.
-    pub schemes: BTreeMap<String, SchemeConfig>,
-    /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
-    /// §4; [`MapMatched`]): causal, from the plan alone.
-    pub map_matching: bool,
-    /// Start every scheme from the robust average of the fixes taken before the first step
-    /// (paper 001 §3.2; [`StaticStart`]); `None`: off.
-    pub static_start: Option<StaticStartConfig>,
-    /// Score only waypoints within this many metres of path from the walk's first waypoint
-    /// (the "first 20 m" of issue 8's static start); `None`: the whole walk.
-    pub score_first_m: Option<f64>,
-    /// Extend each fold's radio map into its coverage gaps with per-AP path-loss models
-    /// fitted on the training fingerprints ([`wipdr_fingerprint::propagation`]; synthesised
-    /// points only where the floor plan is walkable); `None` (default): off. The synthesised
-    /// points do not count as coverage for `pmf`'s gap awareness unless
-    /// `propagation_is_coverage`.
-    pub propagation: Option<PropagationConfig>,
-    /// Count the synthesised points of `propagation` as coverage (see [`PreparedWalk::coverage`]).
-    pub propagation_is_coverage: bool,
-}
-
-impl Default for EvalConfig {
-    fn default() -> Self {
-        Self {
-            radio_map: WalkMapConfig::default(),
-            // The shared-AP distance (findings.md) is the tuned default for recorded walks;
-            // `docs/configs/reference.toml` restores the reference's Euclidean WKNN.
-            matcher: KnnConfig {
-                metric: Metric::SharedAp(SharedAp::default()),
-                ..KnnConfig::default()
-            },
-            query: QueryFilter {
-                max_age_ms: WalkMapConfig::default().max_entry_age_ms,
-                ..QueryFilter::default()
-            },
-            med: None,
-            matcher_spec: None,
-            clustering: Default::default(),
-            pdr: PdrConfig::default(),
-            calibrate_pdr: true,
-            calibration: CalibrationConfig::default(),
-            score_from_first_scan: true,
-            seed: 1,
-            schemes: BTreeMap::new(),
-            map_matching: false,
-            static_start: None,
-            score_first_m: None,
-            propagation: None,
-            propagation_is_coverage: false,
-        }
-    }
-}
-
-impl EvalConfig {
-    /// The config of scheme `name`: the one given, else its defaults.
-    pub fn scheme(&self, name: &str) -> Result<SchemeConfig, EvalError> {
-        match self.schemes.get(name) {
-            Some(c) => Ok(c.clone()),
-            None => SchemeConfig::default_for(name).map_err(|source| EvalError::Scheme {
-                scheme: name.to_string(),
-                source,
-            }),
-        }
-    }
-
-    /// A key of the settings [`prepare`] depends on (equal keys, equal prepared inputs): the
-    /// whole config without the fields that only the scheme runs and the scoring read. Built
-    /// by exclusion, so that a field added later counts as a preparation input (safe: at
-    /// worst a sweep prepares more often than it needs to).
-    pub fn preparation_key(&self) -> String {
-        const RUN_ONLY: [&str; 6] = [
-            "schemes",
-            "seed",
-            "map_matching",
-            "static_start",
-            "score_first_m",
-            "score_from_first_scan",
-        ];
-        match serde_json::to_value(self) {
-            Ok(serde_json::Value::Object(mut fields)) => {
-                for f in RUN_ONLY {
-                    fields.remove(f);
-                }
-                serde_json::Value::Object(fields).to_string()
-            }
-            // Not reached: the config always serialises to an object.
-            Ok(other) => other.to_string(),
-            Err(e) => format!("unserialisable config: {e}"),
-        }
-    }
-}
+pub use crate::config::EvalConfig;
 
 /// A floor under evaluation: its label (as given on the command line) and data.
 #[derive(Debug, Clone)]
@@ -314,297 +212,145 @@ fn prepare_fold(
     fold: usize,
     cfg: &EvalConfig,
 ) -> Result<Vec<PreparedWalk>, EvalError> {
-    let walks = &floor.data.walks;
-    let ids: Vec<&str> = walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
-    let folds = folds_by_name(&ids);
-    let training: Vec<&Walk> = walks
-        .iter()
-        .zip(&folds)
-        .filter(|(_, f)| **f != fold)
-        .map(|(w, _)| &w.walk)
-        .collect();
-    let fp_err = |source| EvalError::Fingerprint {
-        floor: floor.label.clone(),
-        fold,
-        source,
-    };
-    let (mut map, report) =
-        build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
-    tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
-    let mut coverage: Arc<Vec<Point2>> = Arc::new(map.points.iter().map(|p| p.position).collect());
-    if let Some(prop) = &cfg.propagation {
-        let models = fit_ap_models(&map, prop).map_err(fp_err)?;
-        let plan = &floor.data.plan;
-        let extended = extend_radio_map(&mut map, &models, prop, |p| {
-            plan.outline.is_empty() || plan.is_walkable(p)
-        })
-        .map_err(fp_err)?;
-        tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
-        if cfg.propagation_is_coverage {
-            coverage = Arc::new(map.points.iter().map(|p| p.position).collect());
-        }
-    }
-    let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));
-    let trails = if segments.is_empty() {
-        None
-    } else {
-        match TrailRaster::new(&segments, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M) {
-            Ok(r) => Some(Arc::new(r)),
-            Err(e) => {
-                tracing::warn!(floor = %floor.label, fold, error = %e, "no trail raster");
-                None
-            }
-        }
-    };
-    let matcher = KnnMatcher::new(map, cfg.matcher).map_err(fp_err)?;
-    // The indexed matcher of `matcher_spec`, and its stationary window (ms).
-    let indexed: Option<(Box<dyn Matcher>, i64)> = match &cfg.matcher_spec {
-        None => None,
-        Some(spec) => {
-            use wipdr_fingerprint::cluster_search::{apply_spec, build_matcher};
-            let mut c = cfg.clustering.clone();
-            let m = &cfg.matcher;
-            (c.apc.k, c.apc.weighting, c.apc.metric, c.apc.representation) =
-                (m.k, m.weighting, m.metric, m.representation);
-            (c.apindex.k, c.apindex.weighting, c.apindex.metric) = (m.k, m.weighting, m.metric);
-            c.apindex.representation = m.representation;
-            apply_spec(spec, &mut c).map_err(fp_err)?;
-            let built = build_matcher(spec, matcher.shared_map().clone(), &c)
-                .map_err(fp_err)?
-                .ok_or_else(|| {
-                    fp_err(wipdr_fingerprint::FingerprintError::InvalidConfig(format!(
-                        "matcher_spec {spec:?}: expected apc, apindex or med"
-                    )))
-                })?;
-            Some((built, c.apindex.stationary_after_ms))
-        }
-    };
-    let med = cfg
-        .med
-        .map(|m| MedMatcher::new(matcher.shared_map().clone(), m))
-        .transpose()
-        .map_err(fp_err)?;
-    let pdr_cfg = if cfg.calibrate_pdr {
-        calibrate_pdr(&cfg.pdr, &cfg.calibration, &training)
-    } else {
-        cfg.pdr
-    };
-    let tests: Vec<(usize, &Walk)> = walks
-        .iter()
-        .zip(&folds)
-        .enumerate()
-        .filter(|(_, (_, f))| **f == fold)
-        .map(|(i, (w, _))| (i, &w.walk))
-        .collect();
-    let timed: Vec<(PreparedWalk, std::time::Duration)> = tests
+    let model = FoldModel::build(floor, fold, cfg)?;
+    let prepared: Vec<PreparedWalk> = model
+        .test_walks
         .par_iter()
-        .map(|&(_, walk)| {
-            let steps = steps_of(&pdr_cfg, walk);
-            let mut observations = Vec::with_capacity(walk.wifi.len());
-            let mut unmatched = 0;
-            let mut locate_time = std::time::Duration::ZERO;
-            let mut med = med.clone();
-            if let Some(m) = med.as_mut() {
-                m.reset();
-            }
-            let mut prev_t = TimestampMs::MIN;
-            for scan in &walk.wifi {
-                let started = std::time::Instant::now();
-                let located = match med.as_mut() {
-                    None => match &indexed {
-                        None => matcher.locate_scan(scan, &cfg.query),
-                        Some((m, still_after)) => {
-                            // Causal: only steps detected up to the scan.
-                            let motion = wipdr_fingerprint::ap_index::motion_at(
-                                &steps,
-                                scan.t,
-                                *still_after,
-                            );
-                            m.locate_scan_with_motion(scan, &cfg.query, &motion)
-                        }
-                    },
-                    Some(m) => {
-                        // PDR displacement since the previous scan (causal: steps up to now).
-                        let moved = steps
-                            .iter()
-                            .filter(|s| s.t > prev_t && s.t <= scan.t)
-                            .map(|s| wipdr_core::angle::step_displacement(s.length, s.heading))
-                            .fold(wipdr_core::Vector2::zeros(), |a, b| a + b);
-                        Query::from_scan(scan, m.map_ref(), &cfg.query)
-                            .and_then(|q| m.locate_next(&q, moved))
-                    }
-                };
-                prev_t = scan.t;
-                locate_time += started.elapsed();
-                match located {
-                    Ok(o) => observations.push(o),
-                    Err(e) => {
-                        unmatched += 1;
-                        tracing::trace!(walk = %walk.meta.id, t = scan.t, error = %e, "scan not matched");
-                    }
-                }
-            }
-            let prepared = PreparedWalk {
-                floor: floor.label.clone(),
-                floor_index,
-                walk: walk.meta.id.clone(),
-                fold,
-                steps,
-                observations,
-                unmatched_scans: unmatched,
-                first_scan_t: walk.wifi.first().map(|s| s.t),
-                waypoints: walk.waypoints.clone(),
-                coverage: coverage.clone(),
-                trails: trails.clone(),
-            };
-            (prepared, locate_time)
-        })
+        .map(|&i| model.prepare_walk(floor, floor_index, &floor.data.walks[i].walk, cfg))
         .collect();
-    // Matcher cost of the fold (for `-v` runs: visited fraction and queries per second of
-    // matcher time, summed over the fold's walks).
-    let scans: usize = timed.iter().map(|(p, _)| p.observations.len()).sum();
-    let visited: usize = timed
+    // Matcher cost of the fold (for `-v` runs: visited fraction, summed over the fold's walks).
+    let scans: usize = prepared.iter().map(|p| p.observations.len()).sum();
+    let visited: usize = prepared
         .iter()
-        .flat_map(|(p, _)| p.observations.iter().map(|o| o.visited))
+        .flat_map(|p| p.observations.iter().map(|o| o.visited))
         .sum();
-    let locate_s: f64 = timed.iter().map(|(_, d)| d.as_secs_f64()).sum();
+    let map_points = model.matcher.map().len();
     tracing::info!(
         floor = %floor.label,
         fold,
-        map_points = matcher.map().len(),
+        map_points,
         scans,
         visited,
-        visited_fraction = visited as f64 / (scans.max(1) * matcher.map().len().max(1)) as f64,
-        locate_s,
+        visited_fraction = visited as f64 / (scans.max(1) * map_points.max(1)) as f64,
         "fold matcher"
     );
-    Ok(timed.into_iter().map(|(p, _)| p).collect())
+    Ok(prepared)
 }
 
-/// Mixes the evaluation seed with a walk id (FNV-1a), so every walk has its own stream.
-fn walk_seed(seed: u64, walk: &str) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
-    for b in walk.bytes() {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
-
-/// What the schemes may use of a floor plan, built once per floor and shared.
+/// What the schemes may use of a floor plan, built once per floor and shared: the
+/// positioning [`Site`] without a fold's coverage.
 #[derive(Debug, Clone)]
 pub struct FloorEnv {
-    /// Wall index (wall-aware particle filters).
-    pub walls: Arc<WallIndex>,
-    /// Walkable-space raster (`pmf`, map matching); `None` when the plan has no outline.
-    pub walkable: Option<Arc<WalkableGrid>>,
+    /// Walls and walkable raster of the floor's plan.
+    pub site: Site,
 }
-
-/// Options wrapped around every scheme by [`run_scheme`].
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct RunOptions {
-    /// Map-match the estimates ([`MapMatched`]).
-    pub map_matching: bool,
-    /// Static start ([`StaticStart`]); not applied to the `pdr` baseline, which starts at
-    /// the true first waypoint.
-    pub static_start: Option<StaticStartConfig>,
-}
-
-impl RunOptions {
-    /// The options of an evaluation config.
-    pub fn of(cfg: &EvalConfig) -> Self {
-        Self {
-            map_matching: cfg.map_matching,
-            static_start: cfg.static_start.clone(),
-        }
-    }
-}
-
-/// Raster cell of [`FloorEnv::walkable`], metres.
-pub const WALKABLE_CELL_M: f64 = 0.5;
 
 impl FloorEnv {
     /// Indexes the plan of `floor`.
     pub fn new(floor: &FloorInput) -> Self {
-        let plan = &floor.data.plan;
-        let walkable = if plan.outline.is_empty() {
-            None
-        } else {
-            match WalkableGrid::new(plan, WALKABLE_CELL_M) {
-                Ok(g) => Some(Arc::new(g)),
-                Err(e) => {
-                    tracing::warn!(floor = %floor.label, error = %e, "no walkable raster");
-                    None
-                }
-            }
-        };
         Self {
-            walls: Arc::new(WallIndex::new(&plan.walls)),
-            walkable,
+            site: Site::from_plan(Some(&floor.data.plan)),
         }
     }
 }
 
-/// Runs one scheme causally over one prepared walk: steps and observations merged in time
-/// order (a step before a Wi-Fi fix of the same millisecond), the estimate recorded after
-/// every input. `env` is the floor's plan (for wall-aware schemes and map matching); with
-/// `map_matching` every estimate is projected onto walkable space ([`MapMatched`]).
+/// Runs one scheme causally over one prepared walk through the fusion stage of the
+/// [`Positioner`](wipdr_positioning::Positioner): steps and fixes merged by the one replay
+/// driver ([`wipdr_fusion::replay`]: a step before a fix of the same millisecond), the
+/// estimate recorded after every input. `env` is the floor's plan (walls, walkable space);
+/// `cfg` gives the wrappers (map matching, static start) and the seed (mixed with the walk's
+/// id). The `pdr` baseline starts at the true first waypoint (the protocol's one use of
+/// truth, labelled so) and its track begins there.
 pub fn run_scheme(
     scheme: &SchemeConfig,
     walk: &PreparedWalk,
     env: Option<&FloorEnv>,
-    options: &RunOptions,
-    seed: u64,
+    cfg: &EvalConfig,
 ) -> Result<Track, EvalError> {
-    let is_pdr_baseline = scheme.name() == "pdr";
-    let start = if is_pdr_baseline {
+    let start = if scheme.name() == "pdr" {
         walk.true_start()
     } else {
         None
     };
-    let walkable = env.and_then(|e| e.walkable.clone());
-    let ctx = BuildContext {
-        walls: env.map(|e| e.walls.clone()),
-        seed: walk_seed(seed, &walk.walk),
-        start: start.map(|w| w.position),
-        walkable: walkable.clone(),
-        coverage: Some(walk.coverage.clone()),
-        trails: walk.trails.clone(),
-    };
-    let mut fuser = scheme.build(&ctx).map_err(|source| EvalError::Scheme {
-        scheme: scheme.name().to_string(),
+    let mut site = env.map(|e| e.site.clone()).unwrap_or_default();
+    site.coverage = Some(walk.coverage.clone());
+    site.trails = walk.trails.clone();
+    let positioner = cfg.positioner(scheme.clone(), cfg.pdr);
+    let mut stage = FusionStage::with_scheme(
+        &site,
+        scheme,
+        &positioner,
+        stream_seed(cfg.seed, &walk.walk),
+        start.map(|w| w.position),
+    )
+    .map_err(|source| EvalError::Positioning {
+        floor: walk.floor.clone(),
         source,
     })?;
-    if let Some(ss) = options.static_start.as_ref().filter(|_| !is_pdr_baseline) {
-        fuser = Box::new(StaticStart::new(fuser, ss.clone()));
-    }
-    if options.map_matching
-        && let Some(grid) = walkable
-    {
-        fuser = Box::new(MapMatched::new(fuser, grid));
-    }
     let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
-    if let (Some(w), Some(e)) = (start, fuser.estimate()) {
+    if let (Some(w), Some(e)) = (start, stage.estimate()) {
         track.push((w.t, e.position));
     }
-    let (mut i, mut j) = (0, 0);
-    let (steps, obs) = (&walk.steps, &walk.observations);
-    while i < steps.len() || j < obs.len() {
-        let take_step = j >= obs.len() || (i < steps.len() && steps[i].t <= obs[j].t);
-        let t = if take_step {
-            fuser.on_step(&steps[i]);
-            i += 1;
-            steps[i - 1].t
-        } else {
-            fuser.on_wifi(&obs[j]);
-            j += 1;
-            obs[j - 1].t
+    let (steps, fixes) = (&walk.steps, &walk.observations);
+    for input in merged(steps, fixes) {
+        let (t, estimate) = match input {
+            FusionInput::Step(i) => (steps[i].t, stage.push_step(&steps[i])),
+            FusionInput::Wifi(j) => (fixes[j].t, stage.push_fix(&fixes[j])),
         };
-        if let Some(e) = fuser.estimate() {
+        if let Some(e) = estimate {
             track.push((t, e.position));
         }
     }
     Ok(track)
+}
+
+/// The track `wipdr locate` writes for walk `walk_id` of `floor`: the walk's raw samples
+/// streamed one by one through a full [`Positioner`] built from the walk's fold (radio map
+/// and calibration from the other folds' walks, as the protocol does). One row per estimate
+/// (after each step or fix; for `pdr`, first the true start). Its score at the waypoints
+/// equals what [`evaluate`] reports for that walk and scheme.
+pub fn locate(
+    floor: &FloorInput,
+    walk_id: &str,
+    scheme: &str,
+    cfg: &EvalConfig,
+) -> Result<Vec<PositionEstimate>, EvalError> {
+    let walks = &floor.data.walks;
+    let index = walks
+        .iter()
+        .position(|w| w.walk.meta.id == walk_id)
+        .ok_or_else(|| EvalError::UnknownWalk {
+            floor: floor.label.clone(),
+            walk: walk_id.to_string(),
+        })?;
+    if walks.len() < wipdr_core::stats::FOLDS {
+        return Err(EvalError::TooFewWalks {
+            floor: floor.label.clone(),
+            walks: walks.len(),
+            folds: wipdr_core::stats::FOLDS,
+        });
+    }
+    let fold = crate::fold::folds_of(floor)[index];
+    let model = FoldModel::build(floor, fold, cfg)?;
+    let walk = &walks[index].walk;
+    let scheme_cfg = cfg.scheme(scheme)?;
+    let start = (scheme_cfg.name() == "pdr")
+        .then(|| walk.waypoints.first().map(|w| (w.t, w.position)))
+        .flatten();
+    let mut positioner_cfg = cfg.positioner(scheme_cfg, model.pdr);
+    positioner_cfg.seed = stream_seed(cfg.seed, walk_id);
+    let site = model.site(&FloorEnv::new(floor).site);
+    let mut positioner = Positioner::new(
+        &model.matcher,
+        &site,
+        &positioner_cfg,
+        start.map(|(_, p)| p),
+    )
+    .map_err(|source| EvalError::Positioning {
+        floor: floor.label.clone(),
+        source,
+    })?;
+    Ok(track_of(&mut positioner, samples_of(walk), start))
 }
 
 /// Runs `schemes` over prepared walks and scores them.
@@ -620,7 +366,6 @@ pub fn run_prepared(
         .map(|s| cfg.scheme(s))
         .collect::<Result<_, _>>()?;
     let envs: Vec<FloorEnv> = floors.par_iter().map(FloorEnv::new).collect();
-    let options = RunOptions::of(cfg);
     let jobs: Vec<(usize, usize)> = (0..prepared.len())
         .flat_map(|w| (0..configs.len()).map(move |s| (w, s)))
         .collect();
@@ -628,13 +373,7 @@ pub fn run_prepared(
         .par_iter()
         .map(|&(w, s)| {
             let pw = &prepared[w];
-            let track = run_scheme(
-                &configs[s],
-                pw,
-                Some(&envs[pw.floor_index]),
-                &options,
-                cfg.seed,
-            )?;
+            let track = run_scheme(&configs[s], pw, Some(&envs[pw.floor_index]), cfg)?;
             let from = if cfg.score_from_first_scan {
                 pw.first_scan_t
             } else {
@@ -703,13 +442,7 @@ pub fn tracks_of(
         .map(|s| {
             Ok((
                 s.clone(),
-                run_scheme(
-                    &cfg.scheme(s)?,
-                    walk,
-                    Some(&env),
-                    &RunOptions::of(cfg),
-                    cfg.seed,
-                )?,
+                run_scheme(&cfg.scheme(s)?, walk, Some(&env), cfg)?,
             ))
         })
         .collect()
@@ -718,34 +451,4 @@ pub fn tracks_of(
 /// The true position of a prepared walk at `t` (for plots), from its waypoints.
 pub fn truth_at(walk: &PreparedWalk, t: TimestampMs) -> Option<Point2> {
     wipdr_core::walk::interpolate_waypoints(&walk.waypoints, t)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn preparation_key_follows_what_prepare_reads() {
-        let base = EvalConfig::default();
-        let key = base.preparation_key();
-        // Run-only settings share the prepared inputs.
-        let mut run_only = base.clone();
-        run_only.seed = 7;
-        run_only.map_matching = true;
-        run_only.score_first_m = Some(20.0);
-        run_only
-            .schemes
-            .insert("pmf".into(), SchemeConfig::default_for("pmf").unwrap());
-        assert_eq!(run_only.preparation_key(), key);
-        // Anything else changes them, including fields added after the key was written.
-        let mut propagation = base.clone();
-        propagation.propagation = Some(PropagationConfig::default());
-        assert_ne!(propagation.preparation_key(), key);
-        let mut map = base.clone();
-        map.radio_map.max_entry_age_ms = Some(12_345);
-        assert_ne!(map.preparation_key(), key);
-        let mut coverage = propagation.clone();
-        coverage.propagation_is_coverage = true;
-        assert_ne!(coverage.preparation_key(), propagation.preparation_key());
-    }
 }

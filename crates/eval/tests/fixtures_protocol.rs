@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
+use wipdr_fingerprint::MatcherConfig;
 
 mod common;
 use common::fixture_floor;
@@ -57,17 +58,21 @@ fn test_walk_waypoints_never_reach_a_scheme() {
     }
     // Every fused scheme's track of the victim is unchanged.
     let (a, b) = (&before[0], &after[0]);
+    let seeded = EvalConfig {
+        seed: 7,
+        ..cfg.clone()
+    };
     for s in fused_schemes() {
         let scheme = cfg.scheme(&s).unwrap();
-        let ta = pipeline::run_scheme(&scheme, a, None, &Default::default(), 7).unwrap();
-        let tb = pipeline::run_scheme(&scheme, b, None, &Default::default(), 7).unwrap();
+        let ta = pipeline::run_scheme(&scheme, a, None, &seeded).unwrap();
+        let tb = pipeline::run_scheme(&scheme, b, None, &seeded).unwrap();
         assert_eq!(ta, tb, "scheme {s} depends on the test walk's waypoints");
         assert!(!ta.is_empty(), "scheme {s} produced no estimate");
     }
     // The PDR baseline starts at the true first waypoint, by the protocol (labelled so).
     let pdr = cfg.scheme("pdr").unwrap();
-    let ta = pipeline::run_scheme(&pdr, a, None, &Default::default(), 7).unwrap();
-    let tb = pipeline::run_scheme(&pdr, b, None, &Default::default(), 7).unwrap();
+    let ta = pipeline::run_scheme(&pdr, a, None, &seeded).unwrap();
+    let tb = pipeline::run_scheme(&pdr, b, None, &seeded).unwrap();
     let shift = tb[0].1 - ta[0].1;
     assert!((shift - wipdr_core::Vector2::new(500.0, -300.0)).norm() < 1e-9);
 }
@@ -78,7 +83,7 @@ fn per_walk_and_pooled_figures_agree() {
     // The plain Euclidean WKNN (the sanity bound below was set for it; the shared-AP default
     // is tuned for recorded walks, not for the simulator's radio model).
     let cfg = EvalConfig {
-        matcher: wipdr_fingerprint::KnnConfig::default(),
+        matcher: MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default()),
         ..EvalConfig::default()
     };
     let schemes = vec!["wifi".to_string(), "pdr".to_string(), "ekf".to_string()];
@@ -215,11 +220,11 @@ fn med_with_a_one_scan_window_equals_single_scan_wknn() {
     let floor = fixture_floor();
     // MED's one-scan case is the Euclidean WKNN.
     let knn = EvalConfig {
-        matcher: wipdr_fingerprint::KnnConfig::default(),
+        matcher: MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default()),
         ..EvalConfig::default()
     };
     let med = EvalConfig {
-        med: Some(wipdr_fingerprint::med::MedConfig {
+        matcher: MatcherConfig::Med(wipdr_fingerprint::med::MedConfig {
             window: 1,
             ..Default::default()
         }),
@@ -243,7 +248,7 @@ fn med_with_a_one_scan_window_equals_single_scan_wknn() {
     assert!(compared > 100);
     // A longer window uses the history and changes some fixes.
     let med2 = EvalConfig {
-        med: Some(wipdr_fingerprint::med::MedConfig::default()),
+        matcher: MatcherConfig::Med(wipdr_fingerprint::med::MedConfig::default()),
         ..EvalConfig::default()
     };
     let c = pipeline::prepare(std::slice::from_ref(&floor), &med2).unwrap();

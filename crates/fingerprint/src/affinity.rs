@@ -202,7 +202,7 @@ pub enum TieBreakNoise {
 
 /// Affinity-propagation settings (defaults: paper 001 / algorithms.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct AffinityConfig {
     /// Damping factor in `[0.5, 1)` (default 0.9).
     pub damping: f64,

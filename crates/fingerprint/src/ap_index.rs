@@ -39,7 +39,7 @@ use wipdr_core::{MotionState, StepEvent, TimestampMs, WifiObservation};
 
 /// Settings of the AP-matching index (paper 002 defaults).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct ApIndexConfig {
     /// Strongest offline APs a reference point is indexed under (paper: 2).
     pub top_offline: usize,

@@ -91,7 +91,7 @@ pub enum ClusterMethod {
 
 /// Settings of the cluster-search matcher (paper 001 defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct ClusterSearchConfig {
     /// Strongest online APs a cluster's AP set must contain (paper: 3-5).
     pub n_strongest: usize,
@@ -508,7 +508,7 @@ impl Matcher for ClusterSearchMatcher {
 
 /// Settings of the matchers `apc`, `apindex` and `med`, by name (for the tools).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct ClusteringMatchersConfig {
     /// `apc`.
     pub apc: ClusterSearchConfig,

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 /// K-means settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct KMeansConfig {
     /// Number of clusters (capped at the number of rows).
     pub k: usize,

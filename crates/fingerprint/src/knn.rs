@@ -30,7 +30,7 @@ use wipdr_core::WifiObservation;
 
 /// Settings of a brute-force k-NN matcher.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct KnnConfig {
     /// Number of neighbours K (paper 001: 3-5; 1 = NN).
     pub k: usize,

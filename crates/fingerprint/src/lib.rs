@@ -51,14 +51,17 @@ pub mod error;
 pub mod interpolate;
 pub mod knn;
 pub mod matcher;
+pub mod online;
 pub mod query;
 pub mod radio_map;
+mod records;
 pub mod walk_map;
 
 pub use distance::{Distance, Metric, Representation};
 pub use error::FingerprintError;
 pub use knn::{FloorFirstMatcher, KnnConfig, KnnMatcher};
 pub use matcher::{Matcher, Weighting, majority, observation_from_neighbours, weights_of};
+pub use online::{MatcherConfig, MatcherModel, OnlineMatcher, ScanContext};
 pub use query::{Query, QueryFilter, QueryStats};
 pub use radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint};
 

@@ -63,7 +63,7 @@ use wipdr_core::{Point2, Vector2, WifiObservation};
 
 /// Settings of the MED matcher (paper 004 defaults).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct MedConfig {
     /// Scans in the window, the current one included (paper 004 Table 3: 2 best).
     pub window: usize,

@@ -146,7 +146,7 @@ pub enum SimilarityKind {
 
 /// MixDis settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct MixDisConfig {
     /// MixDis given to pairs with no AP heard at both points (`m_ij = 0`, SigDis infinite);
     /// finite MixDis values lie in `[0, 1]`.

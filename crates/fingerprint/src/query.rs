@@ -16,7 +16,7 @@ use wipdr_io::fingerprint_csv::NOT_DETECTED;
 
 /// Online-side filtering of a scan.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct QueryFilter {
     /// Drop readings weaker than this (dBm); paper 002 §3.2.1 uses -85 dBm stationary,
     /// -75 dBm moving. `None` keeps all.

@@ -19,7 +19,7 @@ pub fn is_valid_rssi(v: f64) -> bool {
 
 /// Settings of a radio map.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct RadioMapConfig {
     /// The RSS written for an AP a reference point did not hear, dBm (algorithms.md: -110).
     pub not_heard_dbm: f32,

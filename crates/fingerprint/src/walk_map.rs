@@ -39,7 +39,7 @@ pub enum LabelTime {
 
 /// Settings of the walk-to-map builder.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct WalkMapConfig {
     /// Drop entries older than this relative to their scan (ms); `None` keeps all.
     pub max_entry_age_ms: Option<i64>,

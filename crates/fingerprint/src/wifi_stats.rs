@@ -109,7 +109,7 @@ pub enum WifiStatsError {
 /// constants of the papers (the paper measured at fixed points); the defaults suit Android
 /// scan lists.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct WifiStatsConfig {
     /// A last-seen time must advance by more than this (ms) to count as a refresh (recorded
     /// last-seen times of a cached entry jitter by about 1 ms between scans).
@@ -332,7 +332,7 @@ fn logistic(z: f64) -> f64 {
 
 /// Settings of [`fit_rr_model`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct FitConfig {
     /// Fewest points accepted (the model has 4 parameters).
     pub min_points: usize,

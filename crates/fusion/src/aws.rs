@@ -17,7 +17,7 @@ use crate::{Diagnostics, Estimate, Fuser, FusionError, InputGuard};
 
 /// Parameters of `aws` (001 §3.1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct AwsConfig {
     /// `w1` (0.4).
     pub w1: f64,

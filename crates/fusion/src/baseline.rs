@@ -8,12 +8,12 @@ use crate::{Estimate, Fuser, InputGuard};
 
 /// Config of `wifi` (nothing to tune; a struct so that the TOML shape is uniform).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct WifiOnlyConfig {}
 
 /// Config of `pdr`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct PdrOnlyConfig {
     /// Multiplies every step length (1 = as PDR reports).
     pub step_scale: f64,

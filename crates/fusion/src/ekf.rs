@@ -94,7 +94,7 @@ pub enum ScenarioRule {
 
 /// Heading process noise by turn state (001 §3.2), degrees (standard deviations).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct TurnHeadingSd {
     /// Straight: 2°.
     pub straight_deg: f64,
@@ -116,7 +116,7 @@ impl Default for TurnHeadingSd {
 
 /// Scenario-dependent position noise (000 §4.1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct ScenarioConfig {
     /// `dN^2 = dE^2` in a corridor: 2.5² m².
     pub corridor_q_m2: f64,
@@ -141,7 +141,7 @@ impl Default for ScenarioConfig {
 
 /// Speed-dependent step-length noise (000 §4.1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SpeedConfig {
     /// `ds^2` at normal speed: 1 m².
     pub normal_q_step_m2: f64,
@@ -170,7 +170,7 @@ pub enum RobustMode {
 
 /// Robust filter parameters (000 §4.2) and the recovery rule.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct RobustConfig {
     /// Significance level of the F-test: 1 %.
     pub alpha: f64,
@@ -196,7 +196,7 @@ impl Default for RobustConfig {
 
 /// Parameters of the EKF family; defaults are the papers' values (001 eq. 15-16, 000 §4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct EkfConfig {
     /// `dN^2 = dE^2` per step (001: 2 m²).
     pub q_position_m2: f64,

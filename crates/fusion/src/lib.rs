@@ -64,6 +64,7 @@ pub mod ekf;
 pub mod kalman;
 pub mod particle;
 pub mod point_mass;
+pub mod replay;
 pub mod resample;
 pub mod robust_offset;
 pub mod static_start;

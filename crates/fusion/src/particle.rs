@@ -58,7 +58,7 @@ pub struct WeightedPoint {
 
 /// Parameters of `pf` and `apf` (004 §4.3). The paper gives no numeric values; these are ours.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct PfConfig {
     /// Number of particles.
     pub n_particles: usize,

@@ -22,7 +22,7 @@ use wipdr_core::{
 
 /// Parameters of the synthetic walk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SyntheticConfig {
     /// Seed of everything random.
     pub seed: u64,
@@ -109,14 +109,8 @@ pub struct SyntheticWalk {
     pub start: Point2,
 }
 
-/// One input of a merged replay.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Input {
-    /// Index into [`SyntheticWalk::steps`].
-    Step(usize),
-    /// Index into [`SyntheticWalk::wifi`].
-    Wifi(usize),
-}
+/// One input of a merged replay (indices into [`SyntheticWalk::steps`] / [`SyntheticWalk::wifi`]).
+pub use crate::replay::FusionInput as Input;
 
 fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
     Polygon::rectangle(x0, y0, x1, y1).expect("finite corners")
@@ -321,22 +315,10 @@ impl SyntheticWalk {
         }
     }
 
-    /// Steps and fixes merged in time order (a fix before a step at the same time).
+    /// Steps and fixes merged in time order by the one replay driver
+    /// ([`crate::replay::merged`]: a step before a fix at the same time).
     pub fn inputs(&self) -> Vec<Input> {
-        let mut out = Vec::with_capacity(self.steps.len() + self.wifi.len());
-        let (mut i, mut j) = (0, 0);
-        while i < self.steps.len() || j < self.wifi.len() {
-            let take_wifi =
-                j < self.wifi.len() && (i >= self.steps.len() || self.wifi[j].t <= self.steps[i].t);
-            if take_wifi {
-                out.push(Input::Wifi(j));
-                j += 1;
-            } else {
-                out.push(Input::Step(i));
-                i += 1;
-            }
-        }
-        out
+        crate::replay::merged(&self.steps, &self.wifi).collect()
     }
 }
 

@@ -78,7 +78,7 @@ pub fn next_state(
 
 /// Parameters of TCPF (002 §4.3).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct TcpfConfig {
     /// Step-length tolerance `rho` of the trusted area, metres (2 m).
     pub rho_m: f64,

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// (longest line 134 bytes, largest scan 735 entries, largest decompressed walk a few MB,
 /// largest GeoJSON 240 kB) and low enough that one walk stays within a few hundred MB.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct Limits {
     /// Longest accepted trace line, bytes (default 64 KiB).
     pub max_line_bytes: usize,

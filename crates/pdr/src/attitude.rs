@@ -82,7 +82,7 @@ pub fn gravity_orientation(acc: [f64; 3]) -> Option<UnitQuaternion<f64>> {
 
 /// Settings of the gyroscope attitude integration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct GyroAttitudeConfig {
     /// Gain (1/s) of a complementary tilt correction towards the accelerometer's gravity,
     /// applied to roll and pitch only (heading stays gyro-only). 0 = paper 004 eq. 1-5 as
@@ -192,7 +192,7 @@ impl GyroAttitude {
 
 /// Settings of the gyro + compass heading Kalman filter (paper 002 eq. 9-12).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct HeadingKfConfig {
     /// Process noise of the angle, rad²/s (the angle row of `phi`, eq. 11, per second).
     pub angle_noise: f64,

@@ -29,7 +29,7 @@ pub enum FitObjective {
 
 /// Settings of the calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct CalibrationConfig {
     /// Objective of the step-length fit.
     pub objective: FitObjective,

@@ -19,7 +19,7 @@ use wipdr_core::TimestampMs;
 
 /// Settings of the step detector. Defaults are the sample code's values.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct StepDetectorConfig {
     /// Low-pass filter of the acceleration magnitude.
     pub low_pass: LowPassConfig,

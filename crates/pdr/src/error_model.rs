@@ -75,7 +75,7 @@ pub enum ErrorModelError {
 
 /// Settings of the numerical integration of eq. 14.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct IntegrationConfig {
     /// Simpson intervals over `[0, pi/2]` (rounded up to even).
     pub intervals: usize,

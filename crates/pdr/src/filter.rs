@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 
 /// Settings of the Butterworth low-pass.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct LowPassConfig {
     /// Filter order (even; an odd order is rounded up to the next even one).
     pub order: usize,

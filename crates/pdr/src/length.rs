@@ -58,7 +58,7 @@ pub trait StepLengthModel {
 
 /// Paper 000 eq. 6: `SL = A + B p + C s_max`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct Linear {
     /// `A`, m.
     pub a: f64,
@@ -96,7 +96,7 @@ impl StepLengthModel for Linear {
 
 /// Paper 002 eq. 8: `SL = K_w (a_max - a_min)^(exponent)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct Weinberg {
     /// `K_w`, m/(m/s²)^exponent.
     pub k: f64,
@@ -133,7 +133,7 @@ impl StepLengthModel for Weinberg {
 
 /// Paper 004 eq. 7: `SL = K · 2 sqrt(2 L h - h²)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct Pendulum {
     /// Leg length `L`, m.
     pub leg_length: f64,
@@ -181,7 +181,7 @@ impl StepLengthModel for Pendulum {
 /// `K = clamp(a0 + a1 / p̄ + a2 σ²_prev, K_min, K_max) · K / K_min`, the first step uses
 /// `K`, and `SL = scale · K · max(a_max - a_min, 1)^(1/4)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SampleCode {
     /// `K` of the first step.
     pub k: f64,

@@ -7,7 +7,7 @@ use wipdr_core::{SpeedClass, TimestampMs, TurnState};
 
 /// Settings of the motion-state classifiers.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct MotionConfig {
     /// Turn threshold `T` on the accumulated gyro of one step, `|SGyr_k|` (eq. 17), as an
     /// angle in radians (the integral of the heading rate over the step). The paper's

@@ -64,7 +64,7 @@ pub enum HeadingAt {
 
 /// Heading settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct HeadingConfig {
     /// The source of the emitted heading.
     pub source: HeadingSource,
@@ -93,7 +93,7 @@ impl Default for HeadingConfig {
 
 /// The whole PDR configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct PdrConfig {
     /// Step detection.
     pub detector: StepDetectorConfig,

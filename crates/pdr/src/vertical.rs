@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 
 /// Settings of the vertical ZUPT filter.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct VerticalConfig {
     /// Standard deviation of the vertical acceleration noise, m/s² (process noise of eq. 9).
     pub accel_std: f64,

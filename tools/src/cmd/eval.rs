@@ -48,7 +48,7 @@ pub fn load_config(path: Option<&Path>) -> Result<EvalConfig> {
         Some(p) => {
             let text =
                 std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            toml::from_str(&text).with_context(|| format!("parsing config {}", p.display()))
+            Ok(EvalConfig::from_toml(&text, &p.display().to_string())?)
         }
     }
 }

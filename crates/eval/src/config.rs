@@ -1,0 +1,298 @@
+//! The evaluation config (`wipdr eval --config FILE.toml`): the [`PositionerConfig`] of every
+//! scheme run, plus how each fold's radio map and PDR calibration are made and how runs are
+//! scored.
+
+use crate::pipeline::EvalError;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use wipdr_fingerprint::propagation::PropagationConfig;
+use wipdr_fingerprint::walk_map::WalkMapConfig;
+use wipdr_fingerprint::{MatcherConfig, QueryFilter};
+use wipdr_fusion::SchemeConfig;
+use wipdr_fusion::static_start::StaticStartConfig;
+use wipdr_pdr::PdrConfig;
+use wipdr_pdr::calibrate::CalibrationConfig;
+use wipdr_positioning::PositionerConfig;
+
+/// Everything an evaluation can be told; every field has a default. Read it with
+/// [`EvalConfig::from_toml`]: a partial section merges onto these defaults (not onto its
+/// type's own), unknown fields are errors naming their path. The sweep tool addresses its
+/// fields by dotted path (`radio_map.max_entry_age_ms`, `matcher.k`, `schemes.ekf.r_wifi`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EvalConfig {
+    /// How training walks become a radio map ([`WalkMapConfig`]).
+    pub radio_map: WalkMapConfig,
+    /// The matcher ([`MatcherConfig`]: `kind = "wknn" | "apc" | "apindex" | "med"`, each
+    /// with its own fields). Default: shared-AP WKNN, k = 5.
+    pub matcher: MatcherConfig,
+    /// Online filtering of test scans ([`QueryFilter`]). Default: entries older than 5 s
+    /// dropped (the radio map's own staleness limit).
+    pub query: QueryFilter,
+    /// The PDR pipeline before calibration ([`PdrConfig`]).
+    pub pdr: PdrConfig,
+    /// Whether step length (and heading offset) are fitted on each fold's training walks.
+    pub calibrate_pdr: bool,
+    /// How the calibration fits ([`CalibrationConfig`]).
+    pub calibration: CalibrationConfig,
+    /// Score only waypoints after the walk's first Wi-Fi scan, for every scheme (as the
+    /// reference pipeline does); earlier ones are counted as skipped.
+    pub score_from_first_scan: bool,
+    /// Seed of the random schemes (mixed with each walk's id,
+    /// [`wipdr_positioning::stream_seed`]).
+    pub seed: u64,
+    /// Scheme configs by name ([`SchemeConfig`]); a scheme not listed runs with its
+    /// defaults.
+    pub schemes: BTreeMap<String, SchemeConfig>,
+    /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
+    /// §4; [`wipdr_fusion::MapMatched`]): causal, from the plan alone.
+    pub map_matching: bool,
+    /// Start every scheme from the robust average of the fixes taken before the first step
+    /// (paper 001 §3.2; [`StaticStartConfig`]); `None`: off.
+    pub static_start: Option<StaticStartConfig>,
+    /// Score only waypoints within this many metres of path from the walk's first waypoint;
+    /// `None`: the whole walk.
+    pub score_first_m: Option<f64>,
+    /// Extend each fold's radio map into its coverage gaps with per-AP path-loss models
+    /// fitted on the training fingerprints ([`PropagationConfig`]; synthesised points only
+    /// where the floor plan is walkable); `None` (default): off. The synthesised points do
+    /// not count as coverage for `pmf`'s gap awareness unless `propagation_is_coverage`.
+    pub propagation: Option<PropagationConfig>,
+    /// Count the synthesised points of `propagation` as coverage.
+    pub propagation_is_coverage: bool,
+}
+
+impl Default for EvalConfig {
+    fn default() -> Self {
+        let positioner = PositionerConfig::default();
+        Self {
+            radio_map: WalkMapConfig::default(),
+            matcher: positioner.matcher,
+            query: positioner.query,
+            pdr: positioner.pdr,
+            calibrate_pdr: true,
+            calibration: CalibrationConfig::default(),
+            score_from_first_scan: true,
+            seed: positioner.seed,
+            schemes: BTreeMap::new(),
+            map_matching: positioner.map_matching,
+            static_start: positioner.static_start,
+            score_first_m: None,
+            propagation: None,
+            propagation_is_coverage: false,
+        }
+    }
+}
+
+/// Keys of earlier config versions, with what replaced them.
+const REMOVED_KEYS: [(&str, &str); 3] = [
+    (
+        "matcher_spec",
+        "`matcher_spec = \"apindex:top=4\"` is now `[matcher]` with `kind = \"apindex\"` and `top_offline = 4` (kinds: wknn, apc, apindex, med)",
+    ),
+    (
+        "med",
+        "`[med]` is now `[matcher]` with `kind = \"med\"` and the same fields",
+    ),
+    (
+        "clustering",
+        "`[clustering.apc]` / `[clustering.apindex]` are now fields of `[matcher]` with `kind = \"apc\"` / `\"apindex\"`",
+    ),
+];
+
+impl EvalConfig {
+    /// Reads a TOML config: merged onto [`EvalConfig::default`] section by section
+    /// ([`wipdr_positioning::merge`]), unknown fields rejected with their path, values
+    /// validated ([`EvalConfig::validate`]). `source` names the file in errors.
+    pub fn from_toml(text: &str, source: &str) -> Result<Self, EvalError> {
+        let bad = |reason: String| EvalError::Config {
+            origin: source.to_string(),
+            reason,
+        };
+        let user: serde_json::Value = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        if let Some(fields) = user.as_object() {
+            for (key, instead) in REMOVED_KEYS {
+                if fields.contains_key(key) {
+                    return Err(bad(format!("{key}: no longer a config key: {instead}")));
+                }
+            }
+        }
+        let cfg: Self = wipdr_positioning::merge::from_value_onto(user, &Self::default())
+            .map_err(|e| bad(e.to_string()))?;
+        cfg.validate().map_err(|e| bad(e.to_string()))?;
+        Ok(cfg)
+    }
+
+    /// Checks values that serde cannot (errors name the field path).
+    pub fn validate(&self) -> Result<(), EvalError> {
+        let invalid = |path: &str, reason: String| EvalError::InvalidConfig {
+            path: path.to_string(),
+            reason,
+        };
+        self.positioner(
+            SchemeConfig::default_for("wifi").map_err(|source| EvalError::Scheme {
+                scheme: "wifi".into(),
+                source,
+            })?,
+            self.pdr,
+        )
+        .validate()
+        .map_err(|e| invalid("positioner", e.to_string()))?;
+        if let Some(m) = self.score_first_m
+            && !(m.is_finite() && m >= 0.0)
+        {
+            return Err(invalid(
+                "score_first_m",
+                format!("must be finite and >= 0, got {m}"),
+            ));
+        }
+        if let Some(ss) = &self.static_start {
+            ss.validate()
+                .map_err(|e| invalid("static_start", e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    /// The config of scheme `name`: the one given, else its defaults.
+    pub fn scheme(&self, name: &str) -> Result<SchemeConfig, EvalError> {
+        match self.schemes.get(name) {
+            Some(c) => Ok(c.clone()),
+            None => SchemeConfig::default_for(name).map_err(|source| EvalError::Scheme {
+                scheme: name.to_string(),
+                source,
+            }),
+        }
+    }
+
+    /// The [`PositionerConfig`] a run of `scheme` uses, with the (calibrated) `pdr`.
+    pub fn positioner(&self, scheme: SchemeConfig, pdr: PdrConfig) -> PositionerConfig {
+        PositionerConfig {
+            matcher: self.matcher.clone(),
+            query: self.query,
+            pdr,
+            scheme,
+            map_matching: self.map_matching,
+            static_start: self.static_start.clone(),
+            seed: self.seed,
+        }
+    }
+
+    /// A key of the settings [`crate::pipeline::prepare`] depends on (equal keys, equal
+    /// prepared inputs): the whole config without the fields that only the scheme runs and
+    /// the scoring read. Built by exclusion, so that a field added later counts as a
+    /// preparation input (safe: at worst a sweep prepares more often than it needs to).
+    pub fn preparation_key(&self) -> String {
+        const RUN_ONLY: [&str; 6] = [
+            "schemes",
+            "seed",
+            "map_matching",
+            "static_start",
+            "score_first_m",
+            "score_from_first_scan",
+        ];
+        match serde_json::to_value(self) {
+            Ok(serde_json::Value::Object(mut fields)) => {
+                for f in RUN_ONLY {
+                    fields.remove(f);
+                }
+                serde_json::Value::Object(fields).to_string()
+            }
+            // Not reached: the config always serialises to an object.
+            Ok(other) => other.to_string(),
+            Err(e) => format!("unserialisable config: {e}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wipdr_fingerprint::Metric;
+
+    #[test]
+    fn preparation_key_follows_what_prepare_reads() {
+        let base = EvalConfig::default();
+        let key = base.preparation_key();
+        let mut run_only = base.clone();
+        run_only.seed = 7;
+        run_only.map_matching = true;
+        run_only.score_first_m = Some(20.0);
+        run_only
+            .schemes
+            .insert("pmf".into(), SchemeConfig::default_for("pmf").unwrap());
+        assert_eq!(run_only.preparation_key(), key);
+        let mut propagation = base.clone();
+        propagation.propagation = Some(PropagationConfig::default());
+        assert_ne!(propagation.preparation_key(), key);
+        let mut map = base.clone();
+        map.radio_map.max_entry_age_ms = Some(12_345);
+        assert_ne!(map.preparation_key(), key);
+        let mut coverage = propagation.clone();
+        coverage.propagation_is_coverage = true;
+        assert_ne!(coverage.preparation_key(), propagation.preparation_key());
+    }
+
+    #[test]
+    fn a_partial_section_keeps_the_evaluation_defaults() {
+        // Seen on the old main: `[matcher] k = 5` switched the metric to Euclidean and a
+        // `[query]` section dropped the 5 s staleness limit.
+        let cfg =
+            EvalConfig::from_toml("[matcher]\nk = 5\n[query]\nstrict = true", "t.toml").unwrap();
+        match &cfg.matcher {
+            MatcherConfig::Wknn(k) => assert!(matches!(k.metric, Metric::SharedAp(_))),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(cfg.query.max_age_ms, EvalConfig::default().query.max_age_ms);
+        assert!(cfg.query.strict);
+    }
+
+    #[test]
+    fn misspelt_keys_are_errors_naming_the_path() {
+        for (text, path) in [
+            (
+                "[schemes.ekf]\nscheme = \"ekf\"\nr_wifii = 3.0",
+                "schemes.ekf",
+            ),
+            ("[matcher]\nkk = 3", "matcher"),
+            ("[pdr]\nstep_lenght = 1", "pdr"),
+            ("[radio_map]\nmax_entry_age = 1", "radio_map"),
+            ("[matcher]\nkind = \"med\"\nwindw = 3", "matcher"),
+            ("map_matchin = true", "map_matchin"),
+        ] {
+            let e = EvalConfig::from_toml(text, "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(path) && e.contains("t.toml"), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn removed_keys_say_what_replaced_them() {
+        let e = EvalConfig::from_toml("matcher_spec = \"med\"", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("kind = \\\"apindex\\\"") || e.contains("[matcher]"),
+            "{e}"
+        );
+        let e = EvalConfig::from_toml("[med]\nwindow = 2", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("kind = \"med\""), "{e}");
+    }
+
+    #[test]
+    fn every_shipped_config_reads() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/configs");
+        let mut read = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                EvalConfig::from_toml(&text, &path.display().to_string()).unwrap();
+                read += 1;
+            }
+        }
+        assert!(read >= 5, "{read} configs");
+    }
+}

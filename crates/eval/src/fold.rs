@@ -1,0 +1,158 @@
+//! One protocol fold of one floor: what is learned from the training walks (radio map and
+//! its extension, the built matcher, the calibrated PDR, coverage and trails), and the
+//! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
+
+use crate::pipeline::{EvalConfig, calibrate_pdr};
+use crate::pipeline::{EvalError, FloorInput, PreparedWalk, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
+use std::sync::Arc;
+use wipdr_core::stats::folds_by_name;
+use wipdr_core::{Point2, Walk};
+use wipdr_fingerprint::MatcherModel;
+use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};
+use wipdr_fingerprint::walk_map::build_from_walks;
+use wipdr_fusion::trails::{TrailRaster, trails_of};
+use wipdr_pdr::PdrConfig;
+use wipdr_positioning::{Event, Frontend, Site, samples_of};
+
+/// What one fold learned from its training walks.
+#[derive(Debug, Clone)]
+pub struct FoldModel {
+    /// The fold.
+    pub fold: usize,
+    /// The matcher built on the fold's radio map.
+    pub matcher: MatcherModel,
+    /// The PDR config, calibrated on the training walks when the config asks.
+    pub pdr: PdrConfig,
+    /// Positions of the radio map's measured reference points (coverage for `pmf`).
+    pub coverage: Arc<Vec<Point2>>,
+    /// Where the training walks went; `None` when they have fewer than two waypoints each.
+    pub trails: Option<Arc<TrailRaster>>,
+    /// Indices (into the floor's walks) of the fold's test walks.
+    pub test_walks: Vec<usize>,
+}
+
+/// The protocol fold of every walk of a floor (walks sorted by file name, walk `i` in fold
+/// `i mod 5`).
+pub fn folds_of(floor: &FloorInput) -> Vec<usize> {
+    let ids: Vec<&str> = floor
+        .data
+        .walks
+        .iter()
+        .map(|w| w.walk.meta.id.as_str())
+        .collect();
+    folds_by_name(&ids)
+}
+
+impl FoldModel {
+    /// Learns fold `fold` of `floor` from its training walks under `cfg`.
+    pub fn build(floor: &FloorInput, fold: usize, cfg: &EvalConfig) -> Result<Self, EvalError> {
+        let walks = &floor.data.walks;
+        let folds = folds_of(floor);
+        let training: Vec<&Walk> = walks
+            .iter()
+            .zip(&folds)
+            .filter(|(_, f)| **f != fold)
+            .map(|(w, _)| &w.walk)
+            .collect();
+        let fp_err = |source| EvalError::Fingerprint {
+            floor: floor.label.clone(),
+            fold,
+            source,
+        };
+        let (mut map, report) =
+            build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
+        tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
+        let mut coverage: Arc<Vec<Point2>> =
+            Arc::new(map.points.iter().map(|p| p.position).collect());
+        if let Some(prop) = &cfg.propagation {
+            let models = fit_ap_models(&map, prop).map_err(fp_err)?;
+            let plan = &floor.data.plan;
+            let extended = extend_radio_map(&mut map, &models, prop, |p| {
+                plan.outline.is_empty() || plan.is_walkable(p)
+            })
+            .map_err(fp_err)?;
+            tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
+            if cfg.propagation_is_coverage {
+                coverage = Arc::new(map.points.iter().map(|p| p.position).collect());
+            }
+        }
+        let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));
+        let trails = if segments.is_empty() {
+            None
+        } else {
+            match TrailRaster::new(&segments, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M) {
+                Ok(r) => Some(Arc::new(r)),
+                Err(e) => {
+                    tracing::warn!(floor = %floor.label, fold, error = %e, "no trail raster");
+                    None
+                }
+            }
+        };
+        let matcher = cfg.matcher.build(Arc::new(map)).map_err(fp_err)?;
+        let pdr = if cfg.calibrate_pdr {
+            calibrate_pdr(&cfg.pdr, &cfg.calibration, &training)
+        } else {
+            cfg.pdr
+        };
+        let test_walks = folds
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| **f == fold)
+            .map(|(i, _)| i)
+            .collect();
+        Ok(Self {
+            fold,
+            matcher,
+            pdr,
+            coverage,
+            trails,
+            test_walks,
+        })
+    }
+
+    /// The site of a test walk: the floor's plan indexes (`plan_site`, shared per floor)
+    /// with this fold's coverage and trails.
+    pub fn site(&self, plan_site: &Site) -> Site {
+        Site {
+            coverage: Some(self.coverage.clone()),
+            trails: self.trails.clone(),
+            ..plan_site.clone()
+        }
+    }
+
+    /// Streams a test walk's raw samples through the front end of the
+    /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher), recording its
+    /// step and fix events: the scheme-independent half of every run, done once per walk.
+    pub fn prepare_walk(
+        &self,
+        floor: &FloorInput,
+        floor_index: usize,
+        walk: &Walk,
+        cfg: &EvalConfig,
+    ) -> PreparedWalk {
+        let mut frontend = Frontend::new(self.pdr, self.matcher.stream(cfg.query));
+        let mut steps = Vec::new();
+        let mut observations = Vec::with_capacity(walk.wifi.len());
+        for sample in samples_of(walk) {
+            match frontend.push(&sample) {
+                Some(Event::Step(s)) => steps.push(s),
+                Some(Event::Fix(o)) => observations.push(o),
+                None => {}
+            }
+        }
+        let counts = frontend.counts();
+        PreparedWalk {
+            floor: floor.label.clone(),
+            floor_index,
+            walk: walk.meta.id.clone(),
+            fold: self.fold,
+            steps,
+            observations,
+            unmatched_scans: usize::try_from(counts.unmatched_scans).unwrap_or(usize::MAX),
+            first_scan_t: walk.wifi.first().map(|s| s.t),
+            waypoints: walk.waypoints.clone(),
+            coverage: self.coverage.clone(),
+            trails: self.trails.clone(),
+        }
+    }
+}

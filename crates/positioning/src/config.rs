@@ -1,0 +1,107 @@
+//! The one serde config of a [`crate::Positioner`].
+
+use crate::PositioningError;
+use serde::{Deserialize, Serialize};
+use wipdr_fingerprint::{MatcherConfig, QueryFilter};
+use wipdr_fusion::SchemeConfig;
+use wipdr_fusion::static_start::StaticStartConfig;
+use wipdr_pdr::PdrConfig;
+
+/// Everything a [`crate::Positioner`] is built from (TOML or JSON; unknown fields are
+/// errors). Defaults: shared-AP WKNN, the default PDR, the `ekf` scheme.
+///
+/// ```
+/// let cfg: wipdr_positioning::PositionerConfig = toml::from_str(r#"
+///     [matcher]
+///     kind = "apindex"
+///     top_offline = 4
+///     [scheme]
+///     scheme = "pmf"
+/// "#).unwrap();
+/// assert_eq!(cfg.scheme.name(), "pmf");
+/// assert!(toml::from_str::<wipdr_positioning::PositionerConfig>("mapmatching = true").is_err());
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PositionerConfig {
+    /// The matcher ([`MatcherConfig`], `[matcher]` with `kind = ...`).
+    pub matcher: MatcherConfig,
+    /// Online filtering of each scan before matching ([`QueryFilter`], `[query]`).
+    pub query: QueryFilter,
+    /// The PDR pipeline ([`PdrConfig`], `[pdr]`).
+    pub pdr: PdrConfig,
+    /// The fusion scheme ([`SchemeConfig`], `[scheme]` with `scheme = "ekf"`, ...).
+    pub scheme: SchemeConfig,
+    /// Project every estimate onto the floor plan's walkable space
+    /// ([`wipdr_fusion::MapMatched`], paper 004 §4); needs a plan with an outline.
+    pub map_matching: bool,
+    /// Start from the robust average of the fixes taken before the first step
+    /// ([`StaticStartConfig`], paper 001 §3.2); `None`: off.
+    pub static_start: Option<StaticStartConfig>,
+    /// Seed of the random schemes (particle filters).
+    pub seed: u64,
+}
+
+impl Default for PositionerConfig {
+    fn default() -> Self {
+        Self {
+            matcher: MatcherConfig::default(),
+            query: default_query(),
+            pdr: PdrConfig::default(),
+            scheme: SchemeConfig::default_for("ekf")
+                .unwrap_or(SchemeConfig::Ekf(Default::default())),
+            map_matching: false,
+            static_start: None,
+            seed: 1,
+        }
+    }
+}
+
+/// Scans entries older than this relative to their scan are dropped by default, ms (the
+/// radio map's staleness limit for recorded walks).
+pub const DEFAULT_MAX_ENTRY_AGE_MS: i64 = 5_000;
+
+/// The default online filter: entries older than [`DEFAULT_MAX_ENTRY_AGE_MS`] dropped.
+pub fn default_query() -> QueryFilter {
+    QueryFilter {
+        max_age_ms: Some(DEFAULT_MAX_ENTRY_AGE_MS),
+        ..QueryFilter::default()
+    }
+}
+
+impl PositionerConfig {
+    /// Reads a TOML config: a partial section merges onto the defaults of its context
+    /// ([`crate::merge::from_toml_onto`]), unknown fields are errors naming their path.
+    pub fn from_toml(text: &str) -> Result<Self, PositioningError> {
+        let cfg: Self = crate::merge::from_toml_onto(text, &Self::default())?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Checks values (errors name the field path).
+    pub fn validate(&self) -> Result<(), PositioningError> {
+        self.matcher
+            .validate()
+            .map_err(|e| PositioningError::InvalidConfig {
+                path: "matcher".into(),
+                reason: e.to_string(),
+            })?;
+        if let Some(age) = self.query.max_age_ms
+            && age < 0
+        {
+            return Err(PositioningError::InvalidConfig {
+                path: "query.max_age_ms".into(),
+                reason: format!("must be >= 0, got {age}"),
+            });
+        }
+        if let Some(v) = self.query.min_rssi_dbm
+            && !v.is_finite()
+        {
+            return Err(PositioningError::InvalidConfig {
+                path: "query.min_rssi_dbm".into(),
+                reason: format!("must be finite, got {v}"),
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,175 @@
+//! Config files that cannot silently lie: a partial section merges onto the effective
+//! defaults of its context (not onto its type's own defaults), and every unknown field is an
+//! error naming its dotted path.
+//!
+//! Why: `#[serde(default)]` fills a missing field from the *type's* `Default`, so a
+//! `[matcher]` section setting only `k` would reset the metric to the type's default even
+//! where the surrounding config's default differs. Here the config text is merged, field by
+//! field, onto the serialised defaults of the whole config, then deserialised strictly.
+//!
+//! Tagged sections (`kind = ...`, `scheme = ...`) whose tag differs from the default's are
+//! not merged field by field (the fields of another kind would not fit): they start from the
+//! defaults of their own tag where the context has some ([`TagDefaults`]), else from their
+//! type's serde defaults.
+//!
+//! ```
+//! use wipdr_positioning::PositionerConfig;
+//! use wipdr_fingerprint::{MatcherConfig, Metric};
+//! let cfg = PositionerConfig::from_toml("[matcher]\nk = 7").unwrap();
+//! // k set; the metric stays the context's shared-AP default.
+//! match cfg.matcher {
+//!     MatcherConfig::Wknn(c) => assert!(c.k == 7 && matches!(c.metric, Metric::SharedAp(_))),
+//!     _ => unreachable!(),
+//! }
+//! let err = PositionerConfig::from_toml("[scheme]\nscheme = \"ekf\"\nr_wifii = 3.0").unwrap_err();
+//! assert!(err.to_string().contains("scheme"), "{err}");
+//! ```
+
+use crate::PositioningError;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use serde_json::Value;
+
+/// Tags whose sections are merged onto per-tag defaults: `(dotted path of the section,
+/// tag key)`. A path segment `*` matches any key (`schemes.*`).
+pub type TagDefaults = fn(path: &str, tag: &str) -> Option<Value>;
+
+/// The tag defaults of wipdr's configs: a `[matcher]` of another kind starts from
+/// [`wipdr_fingerprint::MatcherConfig::defaults_for`] that kind; a scheme section from
+/// [`wipdr_fusion::SchemeConfig::default_for`] its scheme.
+pub fn wipdr_tag_defaults(path: &str, tag: &str) -> Option<Value> {
+    let last = path.rsplit('.').next().unwrap_or(path);
+    if last == "matcher" {
+        return wipdr_fingerprint::MatcherConfig::defaults_for(tag)
+            .ok()
+            .and_then(|c| serde_json::to_value(c).ok());
+    }
+    if last == "scheme" || path.starts_with("schemes.") {
+        return wipdr_fusion::SchemeConfig::default_for(tag)
+            .ok()
+            .and_then(|c| serde_json::to_value(c).ok());
+    }
+    None
+}
+
+const TAG_KEYS: [&str; 2] = ["kind", "scheme"];
+
+/// Merges `user` onto `base` (both JSON values of one config) at `path`.
+pub fn merge_values(base: Value, user: Value, path: &str, tags: TagDefaults) -> Value {
+    match (base, user) {
+        (Value::Object(mut base), Value::Object(user)) => {
+            for key in TAG_KEYS {
+                if let Some(Value::String(tag)) = user.get(key) {
+                    let same = base.get(key).and_then(Value::as_str) == Some(tag.as_str());
+                    if !same {
+                        // Another kind: its own defaults (which carry its tag), or none (the
+                        // type's serde defaults apply).
+                        return match tags(path, tag) {
+                            Some(fresh)
+                                if fresh.get(key).and_then(Value::as_str) == Some(tag.as_str()) =>
+                            {
+                                merge_values(fresh, Value::Object(user), path, tags)
+                            }
+                            _ => Value::Object(user),
+                        };
+                    }
+                }
+            }
+            for (k, v) in user {
+                let sub = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                let merged = match base.remove(&k) {
+                    Some(b) => merge_values(b, v, &sub, tags),
+                    None => v,
+                };
+                base.insert(k, merged);
+            }
+            Value::Object(base)
+        }
+        // A map-typed field with no default entry (e.g. `schemes.ekf`): per-tag defaults.
+        (Value::Null, Value::Object(user)) => {
+            let fresh = TAG_KEYS.iter().find_map(|k| {
+                let tag = user.get(*k).and_then(Value::as_str)?;
+                let fresh = tags(path, tag)?;
+                (fresh.get(*k).and_then(Value::as_str) == Some(tag)).then_some(fresh)
+            });
+            match fresh {
+                Some(fresh) => merge_values(fresh, Value::Object(user), path, tags),
+                None => Value::Object(user),
+            }
+        }
+        (_, user) => user,
+    }
+}
+
+/// Deserialises `value` strictly into `T`, naming the failing field's dotted path.
+pub fn from_value_with_path<T: DeserializeOwned>(value: Value) -> Result<T, PositioningError> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let path = e.path().to_string();
+        PositioningError::Parse(format!("{path}: {}", e.into_inner()))
+    })
+}
+
+/// Reads TOML `text` as a `T`, merged onto `defaults` (see the module docs).
+pub fn from_toml_onto<T: Serialize + DeserializeOwned>(
+    text: &str,
+    defaults: &T,
+) -> Result<T, PositioningError> {
+    let user: Value = toml::from_str(text).map_err(|e| PositioningError::Parse(e.to_string()))?;
+    from_value_onto(user, defaults)
+}
+
+/// [`from_toml_onto`] for a value already parsed (JSON, or a sweep's patched TOML).
+pub fn from_value_onto<T: Serialize + DeserializeOwned>(
+    user: Value,
+    defaults: &T,
+) -> Result<T, PositioningError> {
+    let base = serde_json::to_value(defaults)
+        .map_err(|e| PositioningError::Parse(format!("defaults do not serialise: {e}")))?;
+    from_value_with_path(merge_values(base, user, "", wipdr_tag_defaults))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::PositionerConfig;
+
+    #[test]
+    fn partial_sections_keep_context_defaults() {
+        let cfg = PositionerConfig::from_toml("[query]\nmin_rssi_dbm = -90.0").unwrap();
+        assert_eq!(cfg.query.min_rssi_dbm, Some(-90.0));
+        assert_eq!(
+            cfg.query.max_age_ms,
+            Some(crate::config::DEFAULT_MAX_ENTRY_AGE_MS)
+        );
+    }
+
+    #[test]
+    fn another_kind_starts_from_its_own_defaults() {
+        let cfg =
+            PositionerConfig::from_toml("[matcher]\nkind = \"apindex\"\ntop_offline = 4").unwrap();
+        let want = match wipdr_fingerprint::MatcherConfig::defaults_for("apindex").unwrap() {
+            wipdr_fingerprint::MatcherConfig::Apindex(mut a) => {
+                a.top_offline = 4;
+                a
+            }
+            _ => unreachable!(),
+        };
+        assert_eq!(cfg.matcher, wipdr_fingerprint::MatcherConfig::Apindex(want));
+    }
+
+    #[test]
+    fn unknown_fields_name_their_path() {
+        for (text, path) in [
+            ("[matcher]\nkk = 3", "matcher"),
+            ("[pdr]\nstep_lenght = 3", "pdr"),
+            ("[scheme]\nscheme = \"pmf\"\ncell = 2.0", "scheme"),
+            ("mapmatching = true", "mapmatching"),
+        ] {
+            let e = PositionerConfig::from_toml(text).unwrap_err().to_string();
+            assert!(e.contains(path), "{text}: {e}");
+        }
+    }
+}

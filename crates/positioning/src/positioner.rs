@@ -1,0 +1,349 @@
+//! The online pipeline: [`Frontend`] (PDR + stream matcher: samples in, step and fix events
+//! out), [`FusionStage`] (a fuser and its wrappers: events in, estimates out) and the
+//! [`Positioner`] that chains them for one stream.
+
+use crate::sample::{PressureSample, Sample};
+use crate::{PositionEstimate, PositionerConfig, PositioningError, Site};
+use wipdr_core::{
+    Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
+    WifiScan, angle,
+};
+use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
+use wipdr_fusion::static_start::StaticStart;
+use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
+use wipdr_pdr::{Pdr, PdrConfig};
+
+/// What the front end made of one sample.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A PDR step ended at this sample.
+    Step(StepEvent),
+    /// A Wi-Fi scan was matched.
+    Fix(WifiObservation),
+}
+
+/// Counts of what a stream's front end received and made.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StreamCounts {
+    /// Samples received.
+    pub samples: u64,
+    /// Samples older than the latest one (out of order), ignored.
+    pub out_of_order: u64,
+    /// Steps detected.
+    pub steps: u64,
+    /// Scans received.
+    pub scans: u64,
+    /// Scans the matcher could not use (no known AP left after filtering, ...).
+    pub unmatched_scans: u64,
+    /// Pressure samples received (kept as the latest pressure; floor changes from the
+    /// barometer are not used yet).
+    pub pressure: u64,
+}
+
+/// PDR and the stream matcher: raw samples in, [`Event`]s out. Computes what the matchers
+/// need from the PDR (the latest step's motion for the AP index, the displacement since the
+/// previous scan for MED).
+pub struct Frontend {
+    pdr: Pdr,
+    matcher: Box<dyn OnlineMatcher>,
+    last_step: Option<(TimestampMs, wipdr_core::MotionState)>,
+    moved: Vector2,
+    last_t: Option<TimestampMs>,
+    last_pressure: Option<PressureSample>,
+    counts: StreamCounts,
+}
+
+impl std::fmt::Debug for Frontend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Frontend")
+            .field("matcher", &self.matcher.name())
+            .field("counts", &self.counts)
+            .finish()
+    }
+}
+
+impl Frontend {
+    /// A front end over a built matcher.
+    pub fn new(pdr: PdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
+        Self {
+            pdr: Pdr::new(pdr),
+            matcher,
+            last_step: None,
+            moved: Vector2::zeros(),
+            last_t: None,
+            last_pressure: None,
+            counts: StreamCounts::default(),
+        }
+    }
+
+    /// What the stream received so far.
+    pub fn counts(&self) -> StreamCounts {
+        self.counts
+    }
+
+    /// The latest barometer reading.
+    pub fn last_pressure(&self) -> Option<PressureSample> {
+        self.last_pressure
+    }
+
+    /// Feeds one sample; samples must come in time order (an older one is counted and
+    /// ignored). Returns the event it completed, if any.
+    pub fn push(&mut self, sample: &Sample) -> Option<Event> {
+        self.counts.samples += 1;
+        let t = sample.t();
+        if self.last_t.is_some_and(|last| t < last) {
+            self.counts.out_of_order += 1;
+            tracing::debug!(t, "sample older than the stream: ignored");
+            return None;
+        }
+        self.last_t = Some(t);
+        match sample {
+            Sample::RotationVector(s) => self.pdr.push_rotation_vector(s),
+            Sample::Gyroscope(s) => self.pdr.push_gyroscope(s),
+            Sample::Magnetometer(s) => self.pdr.push_magnetometer(s),
+            Sample::Accelerometer(s) => return self.accelerometer(s).map(Event::Step),
+            Sample::Pressure(p) => {
+                if p.hpa.is_finite() {
+                    self.counts.pressure += 1;
+                    self.last_pressure = Some(*p);
+                }
+            }
+            Sample::Wifi(scan) => return self.scan(scan).map(Event::Fix),
+        }
+        None
+    }
+
+    fn accelerometer(&mut self, s: &Vec3Sample) -> Option<StepEvent> {
+        let step = self.pdr.push_accelerometer(s)?;
+        self.counts.steps += 1;
+        self.last_step = Some((step.t, step.motion));
+        self.moved += angle::step_displacement(step.length, step.heading);
+        Some(step)
+    }
+
+    fn scan(&mut self, scan: &WifiScan) -> Option<WifiObservation> {
+        self.counts.scans += 1;
+        let context = ScanContext {
+            last_step: self.last_step,
+            displacement: self.moved,
+        };
+        self.moved = Vector2::zeros();
+        match self.matcher.locate_online(scan, &context) {
+            Ok(obs) => Some(obs),
+            Err(e) => {
+                self.counts.unmatched_scans += 1;
+                tracing::trace!(t = scan.t, error = %e, "scan not matched");
+                None
+            }
+        }
+    }
+}
+
+/// One stream's fusion: the scheme's fuser wrapped in the configured static start and map
+/// matching, fed events in time order ([`wipdr_fusion::replay`]'s tie rule).
+pub struct FusionStage {
+    fuser: Box<dyn Fuser + Send>,
+    floor: Option<i32>,
+}
+
+impl std::fmt::Debug for FusionStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FusionStage")
+            .field("scheme", &self.fuser.name())
+            .finish()
+    }
+}
+
+impl FusionStage {
+    /// Builds `config.scheme` for one stream. `start` is a known start position (the `pdr`
+    /// baseline of the evaluation protocol starts at the true first waypoint; a user may know
+    /// theirs); with a start the static start is not applied. `seed` seeds random schemes.
+    pub fn new(
+        site: &Site,
+        config: &PositionerConfig,
+        seed: u64,
+        start: Option<Point2>,
+    ) -> Result<Self, PositioningError> {
+        Self::with_scheme(site, &config.scheme, config, seed, start)
+    }
+
+    /// [`FusionStage::new`] with another scheme than `config.scheme` (the evaluation runs
+    /// many schemes with one config).
+    pub fn with_scheme(
+        site: &Site,
+        scheme: &SchemeConfig,
+        config: &PositionerConfig,
+        seed: u64,
+        start: Option<Point2>,
+    ) -> Result<Self, PositioningError> {
+        let ctx = site.build_context(seed, start);
+        let mut fuser = scheme
+            .build(&ctx)
+            .map_err(|source| PositioningError::Scheme {
+                scheme: scheme.name().to_string(),
+                source,
+            })?;
+        if let Some(ss) = config.static_start.as_ref().filter(|_| start.is_none()) {
+            ss.validate().map_err(|e| PositioningError::InvalidConfig {
+                path: "static_start".into(),
+                reason: e.to_string(),
+            })?;
+            fuser = Box::new(StaticStart::new(fuser, ss.clone()));
+        }
+        if config.map_matching {
+            match &site.walkable {
+                Some(grid) => fuser = Box::new(MapMatched::new(fuser, grid.clone())),
+                None => tracing::warn!("map_matching needs a floor plan with an outline: off"),
+            }
+        }
+        Ok(Self { fuser, floor: None })
+    }
+
+    /// Feeds a step; returns the estimate after it.
+    pub fn push_step(&mut self, step: &StepEvent) -> Option<PositionEstimate> {
+        self.fuser.on_step(step);
+        self.estimate()
+    }
+
+    /// Feeds a Wi-Fi fix; returns the estimate after it.
+    pub fn push_fix(&mut self, fix: &WifiObservation) -> Option<PositionEstimate> {
+        self.fuser.on_wifi(fix);
+        if fix.floor.is_some() {
+            self.floor = fix.floor;
+        }
+        self.estimate()
+    }
+
+    /// Feeds an event.
+    pub fn push(&mut self, event: &Event) -> Option<PositionEstimate> {
+        match event {
+            Event::Step(s) => self.push_step(s),
+            Event::Fix(f) => self.push_fix(f),
+        }
+    }
+
+    /// The current estimate (`None` until the scheme has one).
+    pub fn estimate(&self) -> Option<PositionEstimate> {
+        self.fuser.estimate().map(|e| PositionEstimate {
+            t: e.t,
+            position: e.position,
+            floor: self.floor,
+            covariance: e.covariance,
+        })
+    }
+
+    /// The scheme's name.
+    pub fn scheme(&self) -> &'static str {
+        self.fuser.name()
+    }
+}
+
+/// The online positioning pipeline of one stream: raw samples in, one at a time in time
+/// order; the current estimate out. Owns the PDR, the stream matcher and the fuser.
+///
+/// See the [crate docs](crate) for an example.
+#[derive(Debug)]
+pub struct Positioner {
+    frontend: Frontend,
+    fusion: FusionStage,
+}
+
+impl Positioner {
+    /// A positioner for one stream over a built matcher and a site (`seed` as given: mix a
+    /// stream id in with [`crate::stream_seed`] for many streams).
+    pub fn new(
+        matcher: &MatcherModel,
+        site: &Site,
+        config: &PositionerConfig,
+        start: Option<Point2>,
+    ) -> Result<Self, PositioningError> {
+        config.validate()?;
+        Ok(Self {
+            frontend: Frontend::new(config.pdr, matcher.stream(config.query)),
+            fusion: FusionStage::new(site, config, config.seed, start)?,
+        })
+    }
+
+    /// A positioner from its two stages (e.g. a stream matcher of one's own).
+    pub fn from_stages(frontend: Frontend, fusion: FusionStage) -> Self {
+        Self { frontend, fusion }
+    }
+
+    /// Feeds one sample. Returns the new estimate when the sample completed a step or a fix
+    /// (and the scheme has an estimate); `None` otherwise (see [`Positioner::estimate`]).
+    pub fn push(&mut self, sample: &Sample) -> Option<PositionEstimate> {
+        let event = self.frontend.push(sample)?;
+        self.fusion.push(&event)
+    }
+
+    /// Feeds an accelerometer sample (m/s², device frame).
+    pub fn push_accelerometer(&mut self, t: TimestampMs, v: [f64; 3]) -> Option<PositionEstimate> {
+        self.push(&Sample::Accelerometer(Vec3Sample { t, v, accuracy: 3 }))
+    }
+
+    /// Feeds a gyroscope sample (rad/s, device frame).
+    pub fn push_gyroscope(&mut self, t: TimestampMs, v: [f64; 3]) -> Option<PositionEstimate> {
+        self.push(&Sample::Gyroscope(Vec3Sample { t, v, accuracy: 3 }))
+    }
+
+    /// Feeds a magnetometer sample (µT, device frame).
+    pub fn push_magnetometer(&mut self, t: TimestampMs, v: [f64; 3]) -> Option<PositionEstimate> {
+        self.push(&Sample::Magnetometer(Vec3Sample { t, v, accuracy: 3 }))
+    }
+
+    /// Feeds a rotation-vector sample (`x, y, z` of Android's attitude quaternion).
+    pub fn push_rotation_vector(
+        &mut self,
+        t: TimestampMs,
+        v: [f64; 3],
+    ) -> Option<PositionEstimate> {
+        self.push(&Sample::RotationVector(RotationVectorSample {
+            t,
+            v,
+            accuracy: 3,
+        }))
+    }
+
+    /// Feeds a barometer sample (hPa).
+    pub fn push_pressure(&mut self, t: TimestampMs, hpa: f64) -> Option<PositionEstimate> {
+        self.push(&Sample::Pressure(PressureSample { t, hpa }))
+    }
+
+    /// Feeds a Wi-Fi scan.
+    pub fn push_scan(&mut self, scan: WifiScan) -> Option<PositionEstimate> {
+        self.push(&Sample::Wifi(scan))
+    }
+
+    /// The current estimate (`None` until the scheme has one).
+    pub fn estimate(&self) -> Option<PositionEstimate> {
+        self.fusion.estimate()
+    }
+
+    /// What the stream received so far.
+    pub fn counts(&self) -> StreamCounts {
+        self.frontend.counts()
+    }
+}
+
+/// A whole recorded stream through a [`Positioner`]: the track of estimates, one after each
+/// step or fix (and one at `start`'s time first when a start is given), as `wipdr locate`
+/// writes it and the evaluation scores it.
+pub fn track_of(
+    positioner: &mut Positioner,
+    samples: impl IntoIterator<Item = Sample>,
+    start: Option<(TimestampMs, Point2)>,
+) -> Vec<PositionEstimate> {
+    let mut track = Vec::new();
+    if let (Some((t, _)), Some(mut e)) = (start, positioner.estimate()) {
+        e.t = t;
+        track.push(e);
+    }
+    for s in samples {
+        let t = s.t();
+        if let Some(mut e) = positioner.push(&s) {
+            e.t = t;
+            track.push(e);
+        }
+    }
+    track
+}
