@@ -43,6 +43,8 @@ enum Command {
     PdrEval(cmd::pdr_eval::Args),
     /// Evaluate fusion schemes on recorded walks under the protocol folds.
     Eval(cmd::eval::Args),
+    /// Position one walk by streaming its samples through the online Positioner.
+    Locate(cmd::locate::Args),
     /// Run the evaluation on the embedded synthetic fixtures, in seconds.
     Demo(cmd::demo::Args),
     /// Parameter sweeps over scheme configs, resumable and shardable.
@@ -73,6 +75,7 @@ fn main() -> std::process::ExitCode {
         Command::PdrFit(a) => cmd::pdr_fit::run(a),
         Command::PdrEval(a) => cmd::pdr_eval::run(a),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Locate(a) => cmd::locate::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::WifiStats(a) => cmd::wifi_stats::run(a),

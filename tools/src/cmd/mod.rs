@@ -5,6 +5,7 @@ pub mod demo;
 pub mod eval;
 pub mod fingerprint_eval;
 pub mod inspect;
+pub mod locate;
 pub mod pdr_eval;
 pub mod pdr_fit;
 pub mod plot;

@@ -1,0 +1,73 @@
+//! `wipdr locate`'s protocol (a walk's raw samples streamed one by one through a whole
+//! `Positioner`) gives, scored at the walk's waypoints, exactly the per-walk errors of the
+//! evaluation, for every scheme: eval runs the same pipeline.
+
+use wipdr_eval::pipeline::{self, EvalConfig};
+use wipdr_eval::scoring::score_track;
+
+mod common;
+use common::fixture_floor;
+
+fn check(cfg: &EvalConfig) {
+    let floor = fixture_floor();
+    let schemes: Vec<String> = wipdr_fusion::scheme_names()
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let report = pipeline::evaluate(std::slice::from_ref(&floor), cfg, &schemes, &|| {}).unwrap();
+    let mut compared = 0;
+    // One walk of each fold, every scheme.
+    for fold in 0..wipdr_core::stats::FOLDS {
+        let result = report
+            .walks
+            .iter()
+            .find(|w| w.fold == fold)
+            .expect("a walk in every fold");
+        let walk = floor
+            .data
+            .walks
+            .iter()
+            .find(|w| w.walk.meta.id == result.walk)
+            .unwrap();
+        for scheme in &schemes {
+            let from_eval = report
+                .walks
+                .iter()
+                .find(|w| w.walk == result.walk && &w.scheme == scheme)
+                .unwrap();
+            let track: Vec<_> = pipeline::locate(&floor, &result.walk, scheme, cfg)
+                .unwrap()
+                .into_iter()
+                .map(|e| (e.t, e.position))
+                .collect();
+            let from = cfg
+                .score_from_first_scan
+                .then(|| walk.walk.wifi.first().map(|s| s.t))
+                .flatten();
+            let located = score_track(&walk.walk.waypoints, &track, from);
+            assert!(!located.errors.is_empty(), "{scheme}: nothing scored");
+            assert_eq!(
+                located, from_eval.score,
+                "{scheme} on walk {}: locate and eval differ",
+                result.walk
+            );
+            compared += 1;
+        }
+    }
+    assert_eq!(compared, wipdr_core::stats::FOLDS * schemes.len());
+}
+
+#[test]
+fn locate_equals_eval_for_every_scheme_default_config() {
+    check(&EvalConfig::default());
+}
+
+#[test]
+fn locate_equals_eval_for_every_scheme_with_map_matching_and_med() {
+    let cfg = EvalConfig::from_toml(
+        "map_matching = true\n[matcher]\nkind = \"med\"\nwindow = 2\n[static_start]\n",
+        "test",
+    )
+    .unwrap();
+    check(&cfg);
+}
