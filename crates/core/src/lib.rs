@@ -28,6 +28,7 @@ pub mod imu;
 pub mod observation;
 pub mod stats;
 pub mod step;
+pub mod survey;
 pub mod walk;
 pub mod wifi;
 
@@ -36,6 +37,7 @@ pub use floor::{FloorPlan, Polygon, Segment, Unit};
 pub use imu::{ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample};
 pub use observation::{Candidate, WifiObservation};
 pub use step::{MotionState, SpeedClass, StepEvent, TurnState};
+pub use survey::Floor;
 pub use walk::{BeaconSample, Record, Walk, WalkMeta, Waypoint};
 pub use wifi::{Bssid, WifiEntry, WifiScan};
 

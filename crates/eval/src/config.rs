@@ -129,15 +129,28 @@ impl EvalConfig {
             path: path.to_string(),
             reason,
         };
-        self.positioner(
-            SchemeConfig::default_for("wifi").map_err(|source| EvalError::Scheme {
-                scheme: "wifi".into(),
-                source,
-            })?,
-            self.pdr,
-        )
-        .validate()
-        .map_err(|e| invalid("positioner", e.to_string()))?;
+        self.positioner(SchemeConfig::Wifi(Default::default()), self.pdr)
+            .validate()
+            .map_err(|e| match e {
+                wipdr_positioning::PositioningError::InvalidConfig { path, reason } => {
+                    invalid(&path, reason)
+                }
+                other => invalid("", other.to_string()),
+            })?;
+        for (name, scheme) in &self.schemes {
+            scheme
+                .validate()
+                .map_err(|e| invalid(&format!("schemes.{name}"), e.to_string()))?;
+        }
+        let not_heard = self.radio_map.radio.not_heard_dbm;
+        if !(not_heard.is_finite() && (-200.0..=-30.0).contains(&not_heard)) {
+            return Err(invalid(
+                "radio_map.radio.not_heard_dbm",
+                format!(
+                    "must be a finite dBm value in [-200, -30] (below every heard RSSI), got {not_heard}"
+                ),
+            ));
+        }
         if let Some(m) = self.score_first_m
             && !(m.is_finite() && m >= 0.0)
         {
@@ -279,6 +292,35 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("kind = \"med\""), "{e}");
+    }
+
+    #[test]
+    fn bad_values_name_their_field() {
+        for (text, path) in [
+            (
+                "[schemes.ekf]\nscheme = \"ekf\"\nr_wifi_m2 = -3.0",
+                "schemes.ekf",
+            ),
+            (
+                "[pdr]\nmin_step_length = 1.0\nmax_step_length = 0.5",
+                "pdr.max_step_length",
+            ),
+            (
+                "[radio_map.radio]\nnot_heard_dbm = 50.0",
+                "radio_map.radio.not_heard_dbm",
+            ),
+            ("[matcher]\nkind = \"med\"\nwindow = 0", "matcher.window"),
+            (
+                "[schemes.pf]\nscheme = \"pf\"\nn_particles = 1000000000",
+                "n_particles",
+            ),
+            ("score_first_m = -1.0", "score_first_m"),
+        ] {
+            let e = EvalConfig::from_toml(text, "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(path), "{text}: {e}");
+        }
     }
 
     #[test]

@@ -297,6 +297,22 @@ impl SchemeConfig {
         }
     }
 
+    /// Checks the scheme's fields without building it; the error names the field
+    /// (`FusionError::InvalidConfig { field, .. }`, relative to the scheme's section).
+    pub fn validate(&self) -> Result<(), FusionError> {
+        match self {
+            Self::Wifi(_) | Self::Pdr(_) => Ok(()),
+            Self::Ekf(c) | Self::Aekf(c) | Self::Akf(c) | Self::Rkf(c) | Self::Arkf(c) => {
+                c.validate()
+            }
+            Self::Aws(c) => AwsFuser::new(c.clone(), None).map(|_| ()),
+            Self::Tcpf(c) => c.validate(),
+            Self::Pf(c) | Self::Apf(c) => c.validate(),
+            Self::Rof(c) => c.validate(),
+            Self::Pmf(c) => c.validate(),
+        }
+    }
+
     /// Validates the config and builds the scheme.
     pub fn build(&self, ctx: &BuildContext) -> Result<Box<dyn Fuser + Send>, FusionError> {
         Ok(match self {

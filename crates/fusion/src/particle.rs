@@ -129,13 +129,21 @@ impl Default for PfConfig {
     }
 }
 
+/// Upper bound of [`PfConfig::n_particles`]: one million particles (about 100 MB of state,
+/// seconds per fix); a larger value is a config error, not an allocation failure.
+pub const MAX_PARTICLES: usize = 1_000_000;
+
 impl PfConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), FusionError> {
-        if self.n_particles == 0 {
+        if self.n_particles == 0 || self.n_particles > MAX_PARTICLES {
             return Err(FusionError::InvalidConfig {
                 field: "n_particles",
-                reason: "must be >= 1".into(),
+                reason: format!(
+                    "must be in 1..={MAX_PARTICLES}, got {} (each particle costs about 100 bytes \
+                     and one likelihood per fix)",
+                    self.n_particles
+                ),
             });
         }
         let non_negative = [

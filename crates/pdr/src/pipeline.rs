@@ -128,7 +128,61 @@ impl Default for PdrConfig {
     }
 }
 
+/// A PDR setting out of range: `field` is the path under `[pdr]`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("pdr.{field}: {reason}")]
+pub struct PdrConfigError {
+    /// Dotted path under the PDR config (`min_step_length`, `detector.window_s`).
+    pub field: &'static str,
+    /// What is wrong, with the value given.
+    pub reason: String,
+}
+
 impl PdrConfig {
+    /// Checks the values a config file could get wrong (NaN, negative, inverted limits).
+    pub fn validate(&self) -> Result<(), PdrConfigError> {
+        let bad = |field, reason| Err(PdrConfigError { field, reason });
+        let (lo, hi) = (self.min_step_length, self.max_step_length);
+        if !(lo.is_finite() && lo >= 0.0) {
+            return bad(
+                "min_step_length",
+                format!("must be finite and >= 0, got {lo}"),
+            );
+        }
+        if !(hi.is_finite() && hi >= lo) {
+            return bad(
+                "max_step_length",
+                format!("must be finite and >= min_step_length ({lo}), got {hi}"),
+            );
+        }
+        let d = &self.detector;
+        for (field, v) in [
+            ("detector.window_s", d.window_s),
+            ("detector.max_gap_s", d.max_gap_s),
+            ("default_period_s", self.default_period_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, format!("must be finite and > 0, got {v}"));
+            }
+        }
+        for (field, v) in [
+            ("detector.min_threshold", d.min_threshold),
+            ("detector.std_factor", d.std_factor),
+            ("detector.min_step_interval_s", d.min_step_interval_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(field, format!("must be finite and >= 0, got {v}"));
+            }
+        }
+        if !self.heading.map_offset_rad.is_finite() {
+            return bad(
+                "heading.map_offset_rad",
+                format!("must be finite, got {}", self.heading.map_offset_rad),
+            );
+        }
+        Ok(())
+    }
+
     /// The competition sample code's PDR: its detector, its stride model, the rotation
     /// vector's heading at the step time, no map offset, no clamping (bounds 0 and 10 m).
     pub fn sample_code() -> Self {
@@ -615,5 +669,26 @@ impl Pdr {
             .into_iter()
             .map(|d| d.event)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod config_tests {
+    use super::*;
+
+    #[test]
+    fn bad_limits_are_named() {
+        assert!(PdrConfig::default().validate().is_ok());
+        assert!(PdrConfig::sample_code().validate().is_ok());
+        let mut c = PdrConfig {
+            min_step_length: 1.0,
+            max_step_length: 0.5,
+            ..PdrConfig::default()
+        };
+        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        c.max_step_length = f64::NAN;
+        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        c.min_step_length = f64::NAN;
+        assert_eq!(c.validate().unwrap_err().field, "min_step_length");
     }
 }

@@ -86,6 +86,18 @@ impl PositionerConfig {
                 path: "matcher".into(),
                 reason: e.to_string(),
             })?;
+        self.pdr
+            .validate()
+            .map_err(|e| PositioningError::InvalidConfig {
+                path: "pdr".into(),
+                reason: e.to_string(),
+            })?;
+        self.scheme
+            .validate()
+            .map_err(|e| PositioningError::InvalidConfig {
+                path: format!("scheme ({})", self.scheme.name()),
+                reason: e.to_string(),
+            })?;
         if let Some(age) = self.query.max_age_ms
             && age < 0
         {

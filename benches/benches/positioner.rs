@@ -1,0 +1,105 @@
+//! The online `Positioner` on a real walk (ILC site1/F1, when `../shared/data` exists; else
+//! the committed synthetic fixture floor): the walk's raw samples pushed one by one, the
+//! radio map and calibration of the walk's protocol fold (default eval config).
+//!
+//! - `positioner_sample/{ekf,pmf}`: throughput in samples (criterion's time per element is
+//!   the per-sample cost, all sensors and scans averaged).
+//! - `positioner_realtime/{ekf,pmf}`: the same run with the walk's duration as the
+//!   throughput, in milliseconds of walk: criterion's `Kelem/s` is the real-time factor
+//!   (seconds of walk positioned per second of computing).
+//!
+//! `cargo bench -p wipdr-benches --bench positioner`
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use std::path::PathBuf;
+use std::sync::Arc;
+use wipdr_eval::fold::{FoldModel, folds_of};
+use wipdr_eval::pipeline::{EvalConfig, FloorEnv, FloorInput};
+use wipdr_positioning::{Positioner, Sample, samples_of};
+
+fn floor() -> FloorInput {
+    let real = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/ilc20/site1/F1"
+    ));
+    let dir = if real.is_dir() {
+        real
+    } else {
+        eprintln!(
+            "positioner: {} not found, using the fixtures",
+            real.display()
+        );
+        let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim"));
+        let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
+            .expect("fixtures/sim")
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.join("floor_info.json").is_file())
+            .collect();
+        dirs.sort();
+        dirs.remove(0)
+    };
+    let data = wipdr_io::floor::read_floor_dir(&dir, &Default::default()).expect("floor reads");
+    FloorInput {
+        label: dir.display().to_string(),
+        data: Arc::new(data),
+    }
+}
+
+fn positioner(c: &mut Criterion) {
+    let floor = floor();
+    let cfg = EvalConfig::default();
+    // The longest walk, positioned with its own fold's model.
+    let walks = &floor.data.walks;
+    let index = (0..walks.len())
+        .max_by(|&a, &b| {
+            walks[a]
+                .walk
+                .duration_s()
+                .total_cmp(&walks[b].walk.duration_s())
+        })
+        .expect("a walk");
+    let walk = &walks[index].walk;
+    let model = FoldModel::build(&floor, folds_of(&floor)[index], &cfg).expect("fold model");
+    let site = model.site(&FloorEnv::new(&floor).site);
+    let samples: Vec<Sample> = samples_of(walk).collect();
+    let duration_ms = walk.duration_s() * 1000.0;
+    eprintln!(
+        "positioner: walk {} ({:.0} s, {} samples, {} scans), map {} points",
+        walk.meta.id,
+        duration_ms / 1000.0,
+        samples.len(),
+        walk.wifi.len(),
+        model.matcher.map().len()
+    );
+    for (group, throughput) in [
+        (
+            "positioner_sample",
+            Throughput::Elements(samples.len() as u64),
+        ),
+        (
+            "positioner_realtime",
+            Throughput::Elements(duration_ms.max(1.0) as u64),
+        ),
+    ] {
+        let mut g = c.benchmark_group(group);
+        g.sample_size(10);
+        g.throughput(throughput);
+        for scheme in ["ekf", "pmf"] {
+            let pcfg = cfg.positioner(cfg.scheme(scheme).expect("scheme"), model.pdr);
+            g.bench_with_input(BenchmarkId::from_parameter(scheme), &pcfg, |b, pcfg| {
+                b.iter(|| {
+                    let mut p = Positioner::new(&model.matcher, &site, pcfg, None).expect("builds");
+                    let mut estimates = 0usize;
+                    for s in &samples {
+                        estimates += usize::from(p.push(s).is_some());
+                    }
+                    estimates
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, positioner);
+criterion_main!(benches);

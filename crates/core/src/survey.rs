@@ -1,0 +1,40 @@
+//! A floor under evaluation: its plan and its recorded walks, whatever they were read from
+//! (ILC traces, IPIN logfiles, the Python package, walks built in code).
+
+use crate::{FloorPlan, Walk};
+use serde::{Deserialize, Serialize};
+
+/// A floor = plan + walks. The evaluation protocol (`wipdr-eval`) takes these, so walks that
+/// did not come from files enter the same protocol.
+///
+/// ```
+/// use wipdr_core::{Floor, FloorPlan, Walk};
+/// let floor = Floor::new("my/F1", FloorPlan::new(10.0, 10.0, vec![], vec![]), vec![Walk::default()]);
+/// assert_eq!(floor.walks.len(), 1);
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Floor {
+    /// Display name (`site1/F1`).
+    pub name: String,
+    /// The plan in the walks' metre frame.
+    pub plan: FloorPlan,
+    /// The walks, sorted by id (the protocol's folds are by sorted id).
+    pub walks: Vec<Walk>,
+}
+
+impl Floor {
+    /// A floor; the walks are sorted by id.
+    pub fn new(name: impl Into<String>, plan: FloorPlan, mut walks: Vec<Walk>) -> Self {
+        walks.sort_by(|a, b| a.meta.id.cmp(&b.meta.id));
+        Self {
+            name: name.into(),
+            plan,
+            walks,
+        }
+    }
+
+    /// The walk with id `id`.
+    pub fn walk(&self, id: &str) -> Option<&Walk> {
+        self.walks.iter().find(|w| w.meta.id == id)
+    }
+}
