@@ -137,6 +137,14 @@ impl EvalConfig {
                 }
                 other => invalid("", other.to_string()),
             })?;
+        if let Some(i) = &self.radio_map.interpolation {
+            i.validate()
+                .map_err(|e| invalid("radio_map.interpolation", e.to_string()))?;
+        }
+        if let Some(p) = &self.propagation {
+            p.validate()
+                .map_err(|e| invalid("propagation", e.to_string()))?;
+        }
         for (name, scheme) in &self.schemes {
             scheme
                 .validate()

@@ -76,6 +76,10 @@ impl InterpolationConfig {
     }
 }
 
+/// Most fingerprints [`AlongWalkConfig`] may insert between two scans (`max_gap_m /
+/// spacing_m`): a spacing of a nanometre would otherwise allocate without bound.
+pub const MAX_POINTS_PER_PAIR: f64 = 10_000.0;
+
 /// Interpolation between consecutive scans of one walk.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -121,6 +125,14 @@ impl AlongWalkConfig {
             return Err(invalid(format!(
                 "along_walk.max_gap_ms must be positive, got {}",
                 self.max_gap_ms
+            )));
+        }
+        if self.max_gap_m / self.spacing_m > MAX_POINTS_PER_PAIR {
+            return Err(invalid(format!(
+                "along_walk.spacing_m = {} inserts up to {:.0} points between two scans \
+                 (max_gap_m / spacing_m); the limit is {MAX_POINTS_PER_PAIR}: raise spacing_m",
+                self.spacing_m,
+                self.max_gap_m / self.spacing_m
             )));
         }
         Ok(())
@@ -621,6 +633,17 @@ pub fn densify_spatially(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tiny_spacing_is_refused_before_allocating() {
+        let c = AlongWalkConfig {
+            spacing_m: 1e-9,
+            ..AlongWalkConfig::default()
+        };
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("spacing_m"), "{e}");
+        assert!(AlongWalkConfig::default().validate().is_ok());
+    }
     use crate::radio_map::{ApVocabulary, RadioMapConfig};
     use proptest::prelude::*;
 
