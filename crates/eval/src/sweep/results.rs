@@ -355,13 +355,11 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<Vec<SweepRow>, SweepError
                 });
             }
             if let Some((other, _)) = seen.get(&s.index) {
-                if *other != path {
-                    return Err(SweepError::Mismatch {
-                        path: path.clone(),
-                        other: other.display().to_string(),
-                        differences: vec![format!("shard differs: both are shard {s}")],
-                    });
-                }
+                return Err(SweepError::Mismatch {
+                    path: path.clone(),
+                    other: other.display().to_string(),
+                    differences: vec![format!("shard differs: both are shard {s}")],
+                });
             }
             seen.insert(s.index, (path, s));
         }
