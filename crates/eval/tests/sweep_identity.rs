@@ -96,8 +96,10 @@ fn resume_with_a_changed_sweep_file_is_refused() {
     );
 
     // Another base config is refused as well.
-    let mut base = EvalConfig::default();
-    base.seed = 2;
+    let base = EvalConfig {
+        seed: 2,
+        ..EvalConfig::default()
+    };
     let msg = sweep::run_sweep(&a, &base, &floors, &out, &resume(), &|| {})
         .expect_err("another base config must be refused")
         .to_string();

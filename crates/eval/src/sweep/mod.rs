@@ -255,8 +255,10 @@ mod tests {
             e.contains("shard differs: the whole sweep vs shard 1/2"),
             "{e}"
         );
-        let mut base = EvalConfig::default();
-        base.seed = 99;
+        let base = EvalConfig {
+            seed: 99,
+            ..EvalConfig::default()
+        };
         let other = RunIdentity::new(&s, &base, &[], None, 6).unwrap();
         let e = ResultsFile::open(&path, &other, true)
             .unwrap_err()
