@@ -21,10 +21,12 @@ pub struct Args {
     /// Floor folders.
     #[arg(long, num_args = 1..)]
     data: Vec<PathBuf>,
-    /// Results CSV: one row per finished config, appended and flushed at once.
+    /// Results CSV: one row per finished config, appended and flushed at once; its run
+    /// identity is written beside it as `RESULTS.csv.run.json`.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Continue an existing results file, skipping finished configs.
+    /// Continue an existing results file, skipping finished configs; refused when the file's
+    /// run identity (`RESULTS.run.json`: sweep spec, base config, data, shard) differs.
     #[arg(long)]
     resume: bool,
     /// Run one deterministic slice `I/N` (configs with index % N == I), for batch systems.

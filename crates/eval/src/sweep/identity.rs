@@ -186,10 +186,16 @@ pub fn floor_identity(floor: &FloorInput) -> Result<FloorIdentity, SweepError> {
 
 /// The identity of a list of floors.
 pub fn data_identity(floors: &[FloorInput]) -> Result<DataIdentity, SweepError> {
+    let started = std::time::Instant::now();
     let floors: Vec<FloorIdentity> = floors
         .iter()
         .map(floor_identity)
         .collect::<Result<_, _>>()?;
+    tracing::info!(
+        floors = floors.len(),
+        ms = u64::try_from(started.elapsed().as_millis()).unwrap_or(u64::MAX),
+        "data identity hashed"
+    );
     let mut h = StableHasher::default();
     for f in &floors {
         h.update_str(&f.label);
