@@ -113,6 +113,12 @@ fn a_set_stop_flag_stops_early_and_resume_completes_to_the_same_file() {
         std::fs::read_to_string(&stopped).expect("resumed results"),
         "interrupted + resumed must equal the uninterrupted file"
     );
+    let sidecar = |p: &Path| {
+        let mut s = p.as_os_str().to_owned();
+        s.push(".run.json");
+        std::fs::read_to_string(std::path::PathBuf::from(s)).expect("run identity")
+    };
+    assert_eq!(sidecar(&full), sidecar(&stopped), "one run, one identity");
 }
 
 #[test]

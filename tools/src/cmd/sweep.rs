@@ -4,9 +4,9 @@
 use crate::{data, progress};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
+use std::sync::{Arc, OnceLock};
+use wipdr_eval::sweep::{self, RunIdentity, SweepOptions, SweepSpec};
 
 /// Arguments of `wipdr sweep`.
 #[derive(Debug, clap::Args)]
@@ -21,10 +21,12 @@ pub struct Args {
     /// Floor folders.
     #[arg(long, num_args = 1..)]
     data: Vec<PathBuf>,
-    /// Results CSV: one row per finished config, appended and flushed at once.
+    /// Results CSV: one row per finished config, appended and flushed at once; its run
+    /// identity is written beside it as `RESULTS.csv.run.json`.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Continue an existing results file, skipping finished configs.
+    /// Continue an existing results file, skipping finished configs; refused when the file's
+    /// run identity (`RESULTS.run.json`: sweep spec, base config, data, shard) differs.
     #[arg(long)]
     resume: bool,
     /// Run one deterministic slice `I/N` (configs with index % N == I), for batch systems.
@@ -36,6 +38,10 @@ pub struct Args {
     /// Stop after this many configs (the rest can be resumed).
     #[arg(long)]
     max_configs: Option<usize>,
+    /// The most configs the sweep file may expand to (all shards together); a larger sweep
+    /// is refused before it starts. Default: 100000.
+    #[arg(long)]
+    config_limit: Option<usize>,
     /// Where to write the best config (default: the results file with `.best.toml`).
     #[arg(long)]
     best_out: Option<PathBuf>,
@@ -43,7 +49,8 @@ pub struct Args {
 
 #[derive(Debug, clap::Subcommand)]
 enum Sub {
-    /// Join shard result files into one, sorted by config index.
+    /// Join shard result files into one, sorted by config index (refused unless all are
+    /// shards of one sweep: same spec, base config and data, each shard once).
     Merge {
         /// Output CSV.
         #[arg(long)]
@@ -93,15 +100,46 @@ fn shell_quote(word: &str) -> String {
     }
 }
 
+/// The process's stop flag, with the Ctrl-C handler installed once: the first Ctrl-C stops
+/// starting new configs (the running ones finish and are written), a second exits at once.
+fn stop_flag() -> Result<Arc<AtomicBool>> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    if let Some(flag) = FLAG.get() {
+        return Ok(flag.clone());
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if handler_flag.swap(true, Ordering::SeqCst) {
+            // A second Ctrl-C: leave at once. Every finished row is already flushed.
+            eprintln!("\nsecond Ctrl-C: exiting now (finished configs are in the file)");
+            std::process::exit(130);
+        }
+        eprintln!(
+            "\nCtrl-C: no new configs will start; waiting for the running ones to finish \
+             (Ctrl-C again to exit at once)"
+        );
+    })
+    .context("installing the Ctrl-C handler")?;
+    Ok(FLAG.get_or_init(|| stop).clone())
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     if let Some(Sub::Merge { out, shards }) = args.merge {
         let rows = sweep::merge(&shards, &out)?;
+        let total = RunIdentity::read(&out)?.configs;
         println!(
-            "merged {} shard files: {} configs into {}",
+            "merged {} shard files: {} of {} configs into {}{}",
             shards.len(),
             rows.len(),
-            out.display()
+            total,
+            out.display(),
+            if rows.len() < total {
+                " (incomplete: shards missing or unfinished; `wipdr sweep --resume` on it runs the rest)"
+            } else {
+                ""
+            }
         );
         return Ok(());
     }
@@ -116,32 +154,24 @@ pub fn run(args: Args) -> Result<()> {
         toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
     let base = crate::cmd::eval::load_config(args.base.as_deref())?;
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
-    let total = spec.expand()?.len();
+    // Checked before reading any data: a sweep too large to run is refused at once.
+    let limit = args.config_limit.unwrap_or(sweep::DEFAULT_CONFIG_LIMIT);
+    let total = spec.check(limit)?;
+    let in_shard = match shard {
+        Some((i, n)) => (total + n - 1 - i) / n,
+        None => total,
+    };
     let floors = data::load_floors(&args.data)?;
-    // Ctrl-C: stop starting new configs; the running ones finish and are written.
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || {
-            if stop.swap(true, Ordering::SeqCst) {
-                // A second Ctrl-C: leave at once. Every finished row is already flushed.
-                eprintln!("\nsecond Ctrl-C: exiting now (finished configs are in the file)");
-                std::process::exit(130);
-            }
-            eprintln!(
-                "\nCtrl-C: no new configs will start; waiting for the running ones to finish \
-                 (Ctrl-C again to exit at once)"
-            );
-        })
-        .context("installing the Ctrl-C handler")?;
-    }
+    let stop = stop_flag()?;
+    stop.store(false, Ordering::SeqCst);
     let options = SweepOptions {
         resume: args.resume,
         shard,
         max_configs: args.max_configs,
+        config_limit: Some(limit),
         stop: Some(stop),
     };
-    let pb = progress::bar(total as u64, "configs");
+    let pb = progress::bar(in_shard as u64, "configs");
     let started = std::time::Instant::now();
     let outcome = sweep::run_sweep(&spec, &base, &floors, &out, &options, &|| pb.inc(1))?;
     pb.finish_and_clear();
@@ -161,7 +191,7 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!(
             "\nstopped by Ctrl-C: {} of {} configs are in {}. To continue:\n  {}",
             outcome.rows.len(),
-            total,
+            in_shard,
             out.display(),
             resume_command(&spec_path, &out)
         );
@@ -176,22 +206,20 @@ pub fn run(args: Args) -> Result<()> {
             r.index, r.objective, r.summary.mean, r.summary.p95, r.summary.count, r.id
         );
     }
-    if let Some(top) = best.first() {
-        let points = spec.expand()?;
-        let point = points
-            .iter()
-            .find(|p| p.index == top.index)
-            .context("best row not in the sweep")?;
-        let cfg = sweep::config_for(&base, &spec.scheme, point)?;
-        let path = args
-            .best_out
-            .unwrap_or_else(|| out.with_extension("best.toml"));
-        std::fs::write(&path, toml::to_string_pretty(&cfg)?)
-            .with_context(|| format!("writing {}", path.display()))?;
-        println!(
-            "\nbest config written to {} (use with `wipdr eval --config`)",
-            path.display()
-        );
+    // Only from a row measured for this sweep's config at its index (its hash checked).
+    match sweep::best_config(&spec, &base, &outcome.rows, Some(limit))? {
+        Some((_, cfg)) => {
+            let path = args
+                .best_out
+                .unwrap_or_else(|| out.with_extension("best.toml"));
+            std::fs::write(&path, toml::to_string_pretty(&cfg)?)
+                .with_context(|| format!("writing {}", path.display()))?;
+            println!(
+                "\nbest config written to {} (use with `wipdr eval --config`)",
+                path.display()
+            );
+        }
+        None => println!("\nno config scored a finite objective: no best config written"),
     }
     Ok(())
 }
