@@ -20,7 +20,11 @@
 //! assert_eq!(report.pooled["wifi"].mean, 5.0);
 //! ```
 
+pub mod fingerprint_benchmark;
+pub mod folds;
+pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;
 pub mod scoring;
 pub mod sweep;
+pub mod wifi_stats;

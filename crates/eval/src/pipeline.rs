@@ -10,6 +10,7 @@
 //! is the PDR-only baseline, which by the protocol starts at the true first waypoint and is
 //! labelled so.
 
+use crate::folds::{FOLDS, folds_by_name};
 use crate::report::{EvalReport, WalkResult};
 use crate::scoring::{Track, score_track};
 use rayon::prelude::*;
@@ -17,7 +18,6 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use thiserror::Error;
-use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fingerprint::distance::{Metric, SharedAp};
 use wipdr_fingerprint::med::{MedConfig, MedMatcher};
@@ -285,14 +285,14 @@ pub fn prepare(floors: &[FloorInput], cfg: &EvalConfig) -> Result<Vec<PreparedWa
     let mut jobs = Vec::new();
     for (fi, f) in floors.iter().enumerate() {
         let n = f.data.walks.len();
-        if n < wipdr_core::stats::FOLDS {
+        if n < FOLDS {
             return Err(EvalError::TooFewWalks {
                 floor: f.label.clone(),
                 walks: n,
-                folds: wipdr_core::stats::FOLDS,
+                folds: FOLDS,
             });
         }
-        for fold in 0..wipdr_core::stats::FOLDS {
+        for fold in 0..FOLDS {
             jobs.push((fi, fold));
         }
     }

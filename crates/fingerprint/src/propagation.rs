@@ -36,7 +36,7 @@
 //!    the AP's side of it undetermined, and a start on their line is a saddle of the cost);
 //! 2. given `q`, `p0` and `n` by linear least squares of `rss` on `-10 log10 d` (`n` clamped
 //!    to [`PropagationConfig::exponent_range`]);
-//! 3. Levenberg-Marquardt iterations (a damped 4x4 normal-equation solve, Marquardt's
+//! 3. Levenberg-Marquardt iterations ([`wipdr_core::fit`]: a damped 4x4 normal-equation solve, Marquardt's
 //!    diagonal scaling), each step projected onto the bounds: `n` in `exponent_range`, `p0` in
 //!    the valid RSSI range `[-120, 0]` dBm, `q` within
 //!    [`PropagationConfig::max_ap_outside_m`] of the bounding box of the hearing points.
@@ -133,6 +133,7 @@ use crate::radio_map::{MAX_VALID_RSSI_DBM, MIN_VALID_RSSI_DBM, RadioMap, Referen
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use wipdr_core::Point2;
+use wipdr_core::fit::{self, BoxBounds, LmConfig};
 
 /// Distances below this count as this in the model (the reference distance of `p0`), metres.
 pub const REFERENCE_DISTANCE_M: f64 = 1.0;
@@ -483,19 +484,7 @@ fn bbox(points: impl Iterator<Item = Point2>) -> (Point2, Point2) {
 }
 
 /// Parameters `[qx, qy, p0, n]` and the box they are projected onto.
-struct Bounds {
-    lo: [f64; 4],
-    hi: [f64; 4],
-}
-
-impl Bounds {
-    fn project(&self, mut t: [f64; 4]) -> [f64; 4] {
-        for ((v, lo), hi) in t.iter_mut().zip(self.lo).zip(self.hi) {
-            *v = v.clamp(lo, hi);
-        }
-        t
-    }
-}
+type Bounds = BoxBounds<4>;
 
 fn log_distance(q: Point2, p: Point2) -> (f64, f64) {
     let d = (p - q).norm().max(REFERENCE_DISTANCE_M);
@@ -525,14 +514,30 @@ impl FitData<'_> {
         heard.chain(silent)
     }
 
-    fn cost(&self, t: &[f64; 4]) -> f64 {
+    /// Calls `visit(r, J)` for every active term: the weighted residual
+    /// `w (y - (p0 - 10 n log10 d))` and the derivatives of the weighted prediction.
+    fn residuals(&self, t: &[f64; 4], visit: &mut dyn FnMut(f64, &[f64; 4])) {
+        let ln10 = std::f64::consts::LN_10;
         let q = Point2::new(t[0], t[1]);
-        self.terms(t)
-            .map(|(p, y, w)| {
-                let r = w * (y - (t[2] - 10.0 * t[3] * log_distance(q, p).1));
-                r * r
-            })
-            .sum()
+        for (p, y, w) in self.terms(t) {
+            let raw = (p - q).norm();
+            let (d, l) = log_distance(q, p);
+            let r = y - (t[2] - 10.0 * t[3] * l);
+            // d pred / d q = -10 n / ln 10 * (q - p) / d^2 (zero inside the reference distance).
+            let (jx, jy) = if raw > REFERENCE_DISTANCE_M {
+                let f = -10.0 * t[3] / (ln10 * d * d);
+                (f * (q.x - p.x), f * (q.y - p.y))
+            } else {
+                (0.0, 0.0)
+            };
+            visit(w * r, &[w * jx, w * jy, w, -10.0 * w * l]);
+        }
+    }
+
+    fn cost(&self, t: &[f64; 4]) -> f64 {
+        let mut c = 0.0;
+        self.residuals(t, &mut |r, _| c += r * r);
+        c
     }
 
     /// Sum of squared residuals of the readings alone.
@@ -573,109 +578,24 @@ fn linear_p0_n(samples: &[(Point2, f64)], q: Point2, b: &Bounds) -> (f64, f64) {
     (p0, n)
 }
 
-/// Solves the 4x4 system `a x = g` by Gaussian elimination with partial pivoting; `None`
-/// when (nearly) singular or not finite.
-fn solve4(mut a: [[f64; 4]; 4], mut g: [f64; 4]) -> Option<[f64; 4]> {
-    let scale = a
-        .iter()
-        .flat_map(|r| r.iter())
-        .fold(0f64, |m, v| m.max(v.abs()));
-    if !(scale.is_finite() && scale > 0.0) {
-        return None;
-    }
-    for c in 0..4 {
-        let pivot = (c..4).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if a[pivot][c].abs() <= 1e-13 * scale {
-            return None;
-        }
-        a.swap(c, pivot);
-        g.swap(c, pivot);
-        for r in c + 1..4 {
-            let f = a[r][c] / a[c][c];
-            let pivot_row = a[c];
-            for (v, p) in a[r].iter_mut().zip(pivot_row).skip(c) {
-                *v -= f * p;
-            }
-            g[r] -= f * g[c];
-        }
-    }
-    let mut x = [0.0; 4];
-    for c in (0..4).rev() {
-        let s: f64 = (c + 1..4).map(|k| a[c][k] * x[k]).sum();
-        x[c] = (g[c] - s) / a[c][c];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
 /// Levenberg-Marquardt from `t`, projected onto the bounds; returns the parameters and cost.
 fn levenberg_marquardt(
     data: &FitData<'_>,
-    mut t: [f64; 4],
+    t: [f64; 4],
     b: &Bounds,
     max_iterations: usize,
 ) -> ([f64; 4], f64) {
-    let ln10 = std::f64::consts::LN_10;
-    let mut c = data.cost(&t);
-    let mut lambda = 1e-3;
-    for _ in 0..max_iterations {
-        let q = Point2::new(t[0], t[1]);
-        let mut a = [[0.0; 4]; 4];
-        let mut g = [0.0; 4];
-        for (p, y, w) in data.terms(&t) {
-            let raw = (p - q).norm();
-            let (d, l) = log_distance(q, p);
-            let r = y - (t[2] - 10.0 * t[3] * l);
-            // d pred / d q = -10 n / ln 10 * (q - p) / d^2 (zero inside the reference distance).
-            let (jx, jy) = if raw > REFERENCE_DISTANCE_M {
-                let f = -10.0 * t[3] / (ln10 * d * d);
-                (f * (q.x - p.x), f * (q.y - p.y))
-            } else {
-                (0.0, 0.0)
-            };
-            let r = w * r;
-            let j = [w * jx, w * jy, w, -10.0 * w * l];
-            for u in 0..4 {
-                g[u] += j[u] * r;
-                for v in 0..4 {
-                    a[u][v] += j[u] * j[v];
-                }
-            }
-        }
-        let mut accepted = false;
-        for _ in 0..12 {
-            let mut m = a;
-            for (k, row) in m.iter_mut().enumerate() {
-                row[k] += lambda * (a[k][k] + 1e-9);
-            }
-            let Some(step) = solve4(m, g) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let cand = b.project([
-                t[0] + step[0],
-                t[1] + step[1],
-                t[2] + step[2],
-                t[3] + step[3],
-            ]);
-            let cc = data.cost(&cand);
-            if cc.is_finite() && cc < c {
-                let gain = c - cc;
-                t = cand;
-                c = cc;
-                lambda = (lambda / 3.0).max(1e-12);
-                accepted = true;
-                if gain <= 1e-10 * (1.0 + c) {
-                    return (t, c);
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !accepted {
-            break;
-        }
-    }
-    (t, c)
+    let cfg = LmConfig {
+        max_iterations,
+        ..LmConfig::default()
+    };
+    let out = fit::levenberg_marquardt(
+        t,
+        |t| b.project(t),
+        &cfg,
+        |t, visit| data.residuals(t, visit),
+    );
+    (out.params, out.cost)
 }
 
 fn fit_one(data: &FitData<'_>, cfg: &PropagationConfig) -> Option<ApModel> {

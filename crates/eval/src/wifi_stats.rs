@@ -32,13 +32,13 @@
 //!
 //! # The fit
 //!
-//! [`fit_rr_model`]: Levenberg-Marquardt on the sum of squared residuals, started from the best
+//! [`fit_rr_model`]: Levenberg-Marquardt ([`wipdr_core::fit`]) on the sum of squared residuals, started from the best
 //! point of a grid over `(RSSI_r, c)` at which `eta0` and `a` (linear) are solved exactly.
 //! Bad input gives a typed [`WifiStatsError`]: too few points, NaN, no spread of RSSI, no
 //! convergence.
 //!
 //! ```
-//! use wipdr_fingerprint::wifi_stats::{fit_rr_model, RrModel, FitConfig};
+//! use wipdr_eval::wifi_stats::{fit_rr_model, RrModel, FitConfig};
 //!
 //! let truth = RrModel { eta0: 2.0, a: 80.0, rssi_r: -75.0, c: 1.85 };
 //! let rssi: Vec<f64> = (0..200).map(|i| -95.0 + 0.25 * i as f64).collect();
@@ -50,6 +50,7 @@
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use thiserror::Error;
+use wipdr_core::fit::{LmConfig, levenberg_marquardt};
 use wipdr_core::{Bssid, TimestampMs, WifiScan};
 
 /// Errors of the Wi-Fi statistics and of the RR fit.
@@ -342,7 +343,8 @@ pub struct FitConfig {
     pub grid_c: [f64; 6],
     /// Most Levenberg-Marquardt iterations.
     pub max_iterations: usize,
-    /// Converged when the relative decrease of the SSE and the relative step are below this.
+    /// Converged when a step lowers the SSE by at most this times `1 + SSE`, or the gradient is
+    /// at most this times `1 + SSE` ([`wipdr_core::fit::LmConfig`]).
     pub tolerance: f64,
     /// Smallest `c` allowed (dB): a narrower step is a jump the data cannot resolve.
     pub min_c: f64,
@@ -523,33 +525,6 @@ fn linear_part(
     best.map(|(_, f, g)| (f, g - f))
 }
 
-/// Solves the symmetric 4x4 system `m x = b` by Gaussian elimination with partial pivoting;
-/// `None` when singular.
-fn solve4(mut m: [[f64; 4]; 4], mut b: [f64; 4]) -> Option<[f64; 4]> {
-    for col in 0..4 {
-        let piv = (col..4).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
-        if m[piv][col].abs() < 1e-300 || !m[piv][col].is_finite() {
-            return None;
-        }
-        m.swap(col, piv);
-        b.swap(col, piv);
-        let pivot = m[col];
-        for row in col + 1..4 {
-            let f = m[row][col] / pivot[col];
-            for (v, p) in m[row].iter_mut().zip(pivot).skip(col) {
-                *v -= f * p;
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 4];
-    for row in (0..4).rev() {
-        let s: f64 = (row + 1..4).map(|k| m[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / m[row][row];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
 /// Fits the RR model (002 eq. 5) to `(rssi, eta)` by least squares: grid start over
 /// `(RSSI_r, c)` with `eta0`, `a` solved exactly, then Levenberg-Marquardt on all four,
 /// with each trial point projected onto the bounds.
@@ -589,90 +564,44 @@ pub fn fit_rr_model(rssi: &[f64], eta: &[f64], cfg: &FitConfig) -> Result<RrFit,
             }
         }
     }
-    let Some((mut sse, mut m)) = best else {
+    let Some((_, mut m)) = best else {
         return Err(WifiStatsError::NoSpread { span_db: hi - lo });
     };
-    // Levenberg-Marquardt with Marquardt's diagonal scaling, projected onto the bounds.
-    let mut lambda = 1e-3;
-    let mut converged = false;
-    let mut iterations = 0;
-    while iterations < cfg.max_iterations {
-        iterations += 1;
-        let mut jtj = [[0.0; 4]; 4];
-        let mut jtr = [0.0; 4];
-        for (&x, &y) in rssi.iter().zip(eta) {
-            let z = (x - m.rssi_r) / m.c;
-            let s = logistic(z);
-            let ds = s * (1.0 - s);
-            let g = [1.0, s, -m.a * ds / m.c, -m.a * ds * z / m.c];
-            let r = y - (m.eta0 + m.a * s);
-            for p in 0..4 {
-                jtr[p] += g[p] * r;
-                for q in 0..4 {
-                    jtj[p][q] += g[p] * g[q];
-                }
+    // Levenberg-Marquardt (the shared bounded one), each trial projected onto the bounds.
+    let lm = LmConfig {
+        max_iterations: cfg.max_iterations,
+        cost_tolerance: cfg.tolerance,
+        gradient_tolerance: cfg.tolerance,
+        max_damping_tries: 15,
+        ..LmConfig::default()
+    };
+    let as_model = |t: [f64; 4]| RrModel {
+        eta0: t[0],
+        a: t[1],
+        rssi_r: t[2],
+        c: t[3],
+    };
+    let as_params = |m: RrModel| [m.eta0, m.a, m.rssi_r, m.c];
+    let out = levenberg_marquardt(
+        as_params(m),
+        |t| as_params(project(as_model(t))),
+        &lm,
+        |t, visit| {
+            let m = as_model(*t);
+            for (&x, &y) in rssi.iter().zip(eta) {
+                let z = (x - m.rssi_r) / m.c;
+                let s = logistic(z);
+                let ds = s * (1.0 - s);
+                visit(
+                    y - (m.eta0 + m.a * s),
+                    &[1.0, s, -m.a * ds / m.c, -m.a * ds * z / m.c],
+                );
             }
-        }
-        let grad_norm = jtr.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if grad_norm <= cfg.tolerance * (1.0 + sse) {
-            converged = true;
-            break;
-        }
-        let mut accepted = false;
-        while lambda < 1e12 {
-            let mut a = jtj;
-            for (p, row) in a.iter_mut().enumerate() {
-                row[p] += lambda * jtj[p][p].max(1e-12);
-            }
-            let Some(step) = solve4(a, jtr) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let cand = project(RrModel {
-                eta0: m.eta0 + step[0],
-                a: m.a + step[1],
-                rssi_r: m.rssi_r + step[2],
-                c: m.c + step[3],
-            });
-            let s = sse_of(&cand, rssi, eta);
-            if s.is_finite() && s <= sse {
-                let rel_drop = (sse - s) / sse.max(f64::MIN_POSITIVE);
-                let scale = [
-                    m.eta0.abs() + m.a.abs() + 1e-9,
-                    m.a.abs() + 1e-9,
-                    hi - lo,
-                    m.c,
-                ];
-                let moved = [
-                    cand.eta0 - m.eta0,
-                    cand.a - m.a,
-                    cand.rssi_r - m.rssi_r,
-                    cand.c - m.c,
-                ];
-                let rel_step = moved
-                    .iter()
-                    .zip(scale)
-                    .map(|(d, s)| (d / s).abs())
-                    .fold(0.0, f64::max);
-                m = cand;
-                sse = s;
-                lambda = (lambda / 10.0).max(1e-12);
-                accepted = true;
-                if rel_drop < cfg.tolerance && rel_step < cfg.tolerance.sqrt() {
-                    converged = true;
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !accepted {
-            // No downhill step at any damping: a minimum to the precision of f64.
-            converged = true;
-        }
-        if converged {
-            break;
-        }
-    }
+        },
+    );
+    let (converged, iterations) = (out.converged, out.iterations);
+    m = as_model(out.params);
+    let mut sse = out.cost;
     if !converged {
         return Err(WifiStatsError::NoConvergence { iterations, sse });
     }
