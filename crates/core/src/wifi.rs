@@ -75,6 +75,45 @@ pub struct WifiEntry {
 }
 
 impl WifiEntry {
+    /// An entry from what every scanner reports: the BSSID and the RSSI (dBm). The optional
+    /// fields are defaulted: no SSID, frequency 0 (unknown), last seen at time 0; set the
+    /// last-seen time with [`WifiEntry::seen_at`] (a matcher's staleness filter reads it), or
+    /// build the whole scan with [`WifiScan::from_readings`], which stamps each entry with the
+    /// scan time.
+    ///
+    /// ```
+    /// use wipdr_core::{Bssid, WifiEntry};
+    /// let e = WifiEntry::new(Bssid(0xa80cca039dd7), -61.0).seen_at(1_000);
+    /// assert_eq!((e.rssi_dbm, e.last_seen_ms, e.ssid.as_str()), (-61.0, 1_000, ""));
+    /// ```
+    pub fn new(bssid: Bssid, rssi_dbm: f64) -> Self {
+        Self {
+            bssid,
+            ssid: String::new(),
+            rssi_dbm,
+            frequency_mhz: 0,
+            last_seen_ms: 0,
+        }
+    }
+
+    /// The entry with its last-seen time set (Unix ms).
+    pub fn seen_at(mut self, t: TimestampMs) -> Self {
+        self.last_seen_ms = t;
+        self
+    }
+
+    /// The entry with its network name set.
+    pub fn with_ssid(mut self, ssid: impl Into<String>) -> Self {
+        self.ssid = ssid.into();
+        self
+    }
+
+    /// The entry with its channel centre frequency set (MHz).
+    pub fn with_frequency_mhz(mut self, frequency_mhz: u32) -> Self {
+        self.frequency_mhz = frequency_mhz;
+        self
+    }
+
     /// Age of the entry relative to the scan time `scan_t` (ms, >= 0 for sane data).
     pub fn age_ms(&self, scan_t: TimestampMs) -> i64 {
         scan_t - self.last_seen_ms
@@ -91,6 +130,25 @@ pub struct WifiScan {
 }
 
 impl WifiScan {
+    /// A scan at time `t` from `(BSSID, RSSI dBm)` readings, each entry last seen at `t`.
+    ///
+    /// ```
+    /// use wipdr_core::{Bssid, WifiScan};
+    /// let scan = WifiScan::from_readings(5_000, [(Bssid(1), -50.0), (Bssid(2), -70.0)]);
+    /// assert_eq!(scan.entries.len(), 2);
+    /// assert_eq!(scan.entries[1].last_seen_ms, 5_000);
+    /// assert_eq!(scan.strongest().unwrap().bssid, Bssid(1));
+    /// ```
+    pub fn from_readings(t: TimestampMs, readings: impl IntoIterator<Item = (Bssid, f64)>) -> Self {
+        Self {
+            t,
+            entries: readings
+                .into_iter()
+                .map(|(b, r)| WifiEntry::new(b, r).seen_at(t))
+                .collect(),
+        }
+    }
+
     /// Keeps one entry per BSSID: the most recent (largest `last_seen_ms`, later in the list
     /// on ties). Returns how many duplicates were removed. Entry order is otherwise kept.
     pub fn dedup_keep_most_recent(&mut self) -> usize {
