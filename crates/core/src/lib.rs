@@ -23,6 +23,8 @@
 
 pub mod angle;
 pub mod error;
+pub mod fingerprint_table;
+pub mod fit;
 pub mod floor;
 pub mod imu;
 pub mod observation;
@@ -33,6 +35,7 @@ pub mod walk;
 pub mod wifi;
 
 pub use error::CoreError;
+pub use fingerprint_table::{FingerprintLabel, FingerprintTable};
 pub use floor::{FloorPlan, Polygon, Segment, Unit};
 pub use imu::{ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample};
 pub use observation::{Candidate, WifiObservation};

@@ -1,5 +1,5 @@
-//! Error summaries and the fold rule of the evaluation protocol (`docs/evaluation.md`),
-//! shared by every tool that reports accuracy.
+//! Error summaries shared by every tool that reports accuracy (the fold rule of the evaluation
+//! protocol is `wipdr_eval::folds`).
 
 use serde::{Deserialize, Serialize};
 
@@ -71,27 +71,6 @@ pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
             sorted[lo] * (1.0 - f) + sorted[hi] * f
         }
     }
-}
-
-/// Number of folds of the protocol.
-pub const FOLDS: usize = 5;
-
-/// The fold of each walk: walks sorted by file name, walk `i` in fold `i mod 5`. Returns, for
-/// each input name (in input order), its fold.
-///
-/// ```
-/// use wipdr_core::stats::folds_by_name;
-/// let f = folds_by_name(&["c", "a", "b", "f", "e", "d"]);
-/// assert_eq!(f, vec![2, 0, 1, 0, 4, 3]);
-/// ```
-pub fn folds_by_name<S: AsRef<str>>(names: &[S]) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..names.len()).collect();
-    order.sort_by(|&a, &b| names[a].as_ref().cmp(names[b].as_ref()));
-    let mut fold = vec![0; names.len()];
-    for (rank, &i) in order.iter().enumerate() {
-        fold[i] = rank % FOLDS;
-    }
-    fold
 }
 
 #[cfg(test)]

@@ -76,13 +76,17 @@ pub struct WifiEntry {
 
 impl WifiEntry {
     /// An entry with only what a matcher needs: the AP and its RSSI (dBm). The SSID is empty,
-    /// the frequency unknown (0) and the entry counts as seen at the scan's time (it is never
-    /// stale: `last_seen_ms = i64::MAX` is read as "no age known" by the staleness filter).
+    /// the frequency unknown (0) and the last-seen time unknown (`last_seen_ms =
+    /// TimestampMs::MAX`, read as "no age known": the staleness filter never drops it). Set
+    /// the optional fields with [`WifiEntry::seen_at`], [`WifiEntry::with_ssid`] and
+    /// [`WifiEntry::with_frequency_mhz`].
     ///
     /// ```
     /// use wipdr_core::{Bssid, WifiEntry};
     /// let e = WifiEntry::new(Bssid(0x00aa_bbcc_ddee), -61.0);
     /// assert_eq!(e.age_ms(1_000), 0);
+    /// let e = e.seen_at(400);
+    /// assert_eq!((e.age_ms(1_000), e.ssid.as_str()), (600, ""));
     /// ```
     pub fn new(bssid: Bssid, rssi_dbm: f64) -> Self {
         Self {
@@ -92,6 +96,24 @@ impl WifiEntry {
             frequency_mhz: 0,
             last_seen_ms: TimestampMs::MAX,
         }
+    }
+
+    /// The entry with its last-seen time set (Unix ms).
+    pub fn seen_at(mut self, t: TimestampMs) -> Self {
+        self.last_seen_ms = t;
+        self
+    }
+
+    /// The entry with its network name set.
+    pub fn with_ssid(mut self, ssid: impl Into<String>) -> Self {
+        self.ssid = ssid.into();
+        self
+    }
+
+    /// The entry with its channel centre frequency set (MHz).
+    pub fn with_frequency_mhz(mut self, frequency_mhz: u32) -> Self {
+        self.frequency_mhz = frequency_mhz;
+        self
     }
 
     /// Age of the entry relative to the scan time `scan_t` (ms, >= 0 for sane data).
@@ -114,6 +136,25 @@ pub struct WifiScan {
 }
 
 impl WifiScan {
+    /// A scan at time `t` from `(BSSID, RSSI dBm)` readings, each entry last seen at `t`.
+    ///
+    /// ```
+    /// use wipdr_core::{Bssid, WifiScan};
+    /// let scan = WifiScan::from_readings(5_000, [(Bssid(1), -50.0), (Bssid(2), -70.0)]);
+    /// assert_eq!(scan.entries.len(), 2);
+    /// assert_eq!(scan.entries[1].last_seen_ms, 5_000);
+    /// assert_eq!(scan.strongest().unwrap().bssid, Bssid(1));
+    /// ```
+    pub fn from_readings(t: TimestampMs, readings: impl IntoIterator<Item = (Bssid, f64)>) -> Self {
+        Self {
+            t,
+            entries: readings
+                .into_iter()
+                .map(|(b, r)| WifiEntry::new(b, r).seen_at(t))
+                .collect(),
+        }
+    }
+
     /// Keeps one entry per BSSID: the most recent (largest `last_seen_ms`, later in the list
     /// on ties). Returns how many duplicates were removed. Entry order is otherwise kept.
     pub fn dedup_keep_most_recent(&mut self) -> usize {

@@ -2,10 +2,10 @@
 //! its extension, the built matcher, the calibrated PDR, coverage and trails), and the
 //! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
 
+use crate::folds::folds_by_name;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
 use crate::pipeline::{EvalError, FloorInput, PreparedWalk, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
 use std::sync::Arc;
-use wipdr_core::stats::folds_by_name;
 use wipdr_core::{Point2, Walk};
 use wipdr_fingerprint::MatcherModel;
 use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};

@@ -27,8 +27,12 @@
 //! ```
 
 pub mod config;
+pub mod fingerprint_benchmark;
 pub mod fold;
+pub mod folds;
+pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;
 pub mod scoring;
 pub mod sweep;
+pub mod wifi_stats;

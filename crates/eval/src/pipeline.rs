@@ -11,6 +11,7 @@
 //! labelled so.
 
 use crate::fold::FoldModel;
+use crate::folds::FOLDS;
 use crate::report::{EvalReport, WalkResult};
 use crate::scoring::{Track, score_track};
 use rayon::prelude::*;
@@ -183,14 +184,14 @@ pub fn prepare(floors: &[FloorInput], cfg: &EvalConfig) -> Result<Vec<PreparedWa
     let mut jobs = Vec::new();
     for (fi, f) in floors.iter().enumerate() {
         let n = f.data.walks.len();
-        if n < wipdr_core::stats::FOLDS {
+        if n < FOLDS {
             return Err(EvalError::TooFewWalks {
                 floor: f.label.clone(),
                 walks: n,
-                folds: wipdr_core::stats::FOLDS,
+                folds: FOLDS,
             });
         }
-        for fold in 0..wipdr_core::stats::FOLDS {
+        for fold in 0..FOLDS {
             jobs.push((fi, fold));
         }
     }
@@ -323,11 +324,11 @@ pub fn locate(
             floor: floor.label.clone(),
             walk: walk_id.to_string(),
         })?;
-    if walks.len() < wipdr_core::stats::FOLDS {
+    if walks.len() < FOLDS {
         return Err(EvalError::TooFewWalks {
             floor: floor.label.clone(),
             walks: walks.len(),
-            folds: wipdr_core::stats::FOLDS,
+            folds: FOLDS,
         });
     }
     let fold = crate::fold::folds_of(floor)[index];

@@ -18,10 +18,11 @@
 //! ```
 //! use wipdr_fingerprint::ap_index::{ApIndexConfig, ApIndexMatcher};
 //! use wipdr_fingerprint::{Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
-//! use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
-//! let csv = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
-//!            -40,-60,-80,0,0,0,0,0\n-60,-40,-80,5,0,0,0,0\n-80,-60,-40,10,0,0,0,0\n";
-//! let table = read_fingerprint_csv_from(csv.as_bytes(), "inline").unwrap();
+//! use wipdr_core::{FingerprintLabel, FingerprintTable};
+//! let mut table = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into(), "ap_002".into()]);
+//! for (rss, x) in [([-40.0, -60.0, -80.0], 0.0), ([-60.0, -40.0, -80.0], 5.0), ([-80.0, -60.0, -40.0], 10.0)] {
+//!     table.push_row(&rss, FingerprintLabel::at(x, 0.0, 0)).unwrap();
+//! }
 //! let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
 //! let idx = ApIndexMatcher::new(map, ApIndexConfig::default()).unwrap();
 //! let q = Query::from_row(&[-42.0, -62.0, -79.0], idx.map(), &QueryFilter::default()).unwrap();
@@ -250,12 +251,16 @@ impl Matcher for ApIndexMatcher {
 mod tests {
     use super::*;
     use crate::RadioMapConfig;
-    use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
 
     fn map() -> RadioMap {
-        let csv = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
-                   -40,-60,-80,0,0,0,0,0\n-60,-40,-80,5,0,0,0,0\n-80,-60,-40,10,0,0,0,0\n";
-        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let t = crate::test_table(
+            3,
+            &[
+                (&[-40.0, -60.0, -80.0], 0.0),
+                (&[-60.0, -40.0, -80.0], 5.0),
+                (&[-80.0, -60.0, -40.0], 10.0),
+            ],
+        );
         RadioMap::from_table(&t, RadioMapConfig::default()).unwrap()
     }
 
@@ -326,9 +331,14 @@ mod tests {
     #[test]
     fn candidate_search_equals_brute_force_over_the_candidates() {
         // Every point hears AP 0 among its top two: the index search is the brute force.
-        let csv = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
-                   -40,-60,-80,0,0,0,0,0\n-45,-40,-80,5,0,0,0,0\n-41,-70,-60,10,0,0,0,0\n";
-        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let t = crate::test_table(
+            3,
+            &[
+                (&[-40.0, -60.0, -80.0], 0.0),
+                (&[-45.0, -40.0, -80.0], 5.0),
+                (&[-41.0, -70.0, -60.0], 10.0),
+            ],
+        );
         let map = Arc::new(RadioMap::from_table(&t, RadioMapConfig::default()).unwrap());
         for metric in ["euclidean", "manhattan", "sorensen", "shared_ap"] {
             let cfg = ApIndexConfig {
@@ -348,9 +358,13 @@ mod tests {
 
     #[test]
     fn unmatched_strongest_ap_falls_back_to_the_whole_map() {
-        let csv = "ap_000,ap_001,ap_002,ap_003,x,y,z,floor,building\n\
-                   -40,-60,-80,-90,0,0,0,0,0\n-60,-40,-80,-90,5,0,0,0,0\n";
-        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let t = crate::test_table(
+            4,
+            &[
+                (&[-40.0, -60.0, -80.0, -90.0], 0.0),
+                (&[-60.0, -40.0, -80.0, -90.0], 5.0),
+            ],
+        );
         let map = RadioMap::from_table(&t, RadioMapConfig::default()).unwrap();
         let m = ApIndexMatcher::new(map, ApIndexConfig::default()).unwrap();
         let obs = m.locate(&q(vec![(3, -50.0)])).unwrap();

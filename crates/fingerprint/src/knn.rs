@@ -138,10 +138,11 @@ enum Engine {
 ///
 /// ```
 /// use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
-/// use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
-/// let csv = "ap_000,ap_001,x,y,z,floor,building\n-50,-80,0,0,0,0,0\n-80,-50,10,0,0,1,0\n";
-/// let map = RadioMap::from_table(&read_fingerprint_csv_from(csv.as_bytes(), "m").unwrap(),
-///     RadioMapConfig::default()).unwrap();
+/// use wipdr_core::{FingerprintLabel, FingerprintTable};
+/// let mut table = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into()]);
+/// table.push_row(&[-50.0, -80.0], FingerprintLabel::at(0.0, 0.0, 0)).unwrap();
+/// table.push_row(&[-80.0, -50.0], FingerprintLabel::at(10.0, 0.0, 1)).unwrap();
+/// let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
 /// let m = KnnMatcher::new(map, KnnConfig::nn()).unwrap();
 /// let q = Query::from_row(&[-52.0, -79.0], m.map(), &QueryFilter::default()).unwrap();
 /// let obs = m.locate(&q).unwrap();

@@ -12,7 +12,8 @@
 //! - [`RadioMap`]: reference points ([`ReferencePoint`]: position, optional floor/building)
 //!   with mean RSS, sample count and spread per AP, an AP vocabulary ([`ApVocabulary`], BSSID
 //!   or column name <-> column) and a "not heard" fill value (default -110 dBm). Built from
-//!   benchmark CSVs ([`RadioMap::from_table`]) or recorded walks ([`walk_map`]); serde and
+//!   fingerprint tables ([`RadioMap::from_table`], e.g. the benchmark CSVs read by
+//!   `wipdr_io::fingerprint_csv`) or recorded walks ([`walk_map`]); serde and
 //!   bincode.
 //! - [`Query`]: what every matcher takes: the heard APs as sorted `(column, dBm)` pairs. A real
 //!   [`wipdr_core::WifiScan`] ([`Query::from_scan`]) and a benchmark row ([`Query::from_row`])
@@ -29,23 +30,22 @@
 //!
 //! ```
 //! use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
-//! use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
+//! use wipdr_core::{FingerprintLabel, FingerprintTable};
 //!
-//! let train = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
-//!              -40,-70,100,0,0,0,0,0\n\
-//!              -70,-40,-80,10,0,0,0,0\n\
-//!              100,-70,-40,20,0,0,1,0\n";
-//! let table = read_fingerprint_csv_from(train.as_bytes(), "train").unwrap();
+//! let nh = FingerprintTable::NOT_HEARD;
+//! let mut table = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into(), "ap_002".into()]);
+//! table.push_row(&[-40.0, -70.0, nh], FingerprintLabel::at(0.0, 0.0, 0)).unwrap();
+//! table.push_row(&[-70.0, -40.0, -80.0], FingerprintLabel::at(10.0, 0.0, 0)).unwrap();
+//! table.push_row(&[nh, -70.0, -40.0], FingerprintLabel::at(20.0, 0.0, 1)).unwrap();
 //! let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
 //! let wknn = KnnMatcher::new(map, KnnConfig::wknn(2, 1.0)).unwrap();
-//! let query = Query::from_row(&[-45.0, -68.0, 100.0], wknn.map(), &QueryFilter::default()).unwrap();
+//! let query = Query::from_row(&[-45.0, -68.0, nh], wknn.map(), &QueryFilter::default()).unwrap();
 //! let obs = wknn.locate(&query).unwrap();
 //! assert_eq!(obs.candidates[0].index, 0);
 //! assert!(obs.estimate.x > 0.0 && obs.estimate.x < 10.0);
 //! assert_eq!(obs.floor, Some(0));
 //! ```
 
-pub mod benchmark;
 pub mod distance;
 pub mod error;
 pub mod interpolate;
@@ -72,4 +72,15 @@ pub mod kmeans;
 pub mod med;
 pub mod mixdis;
 pub mod propagation;
-pub mod wifi_stats;
+
+/// Tables built in code for the unit tests: one row per `(rss, x)`, at `y = 0` on floor 0.
+#[cfg(test)]
+pub(crate) fn test_table(n_aps: usize, rows: &[(&[f32], f64)]) -> wipdr_core::FingerprintTable {
+    let names = (0..n_aps).map(|j| format!("ap_{j:03}")).collect();
+    let mut t = wipdr_core::FingerprintTable::new(names);
+    for &(rss, x) in rows {
+        t.push_row(rss, wipdr_core::FingerprintLabel::at(x, 0.0, 0))
+            .expect("test row length");
+    }
+    t
+}

@@ -35,11 +35,11 @@
 //! ```
 //! use wipdr_fingerprint::med::{MedConfig, MedMatcher};
 //! use wipdr_fingerprint::{Query, QueryFilter, RadioMap, RadioMapConfig};
-//! use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
-//! use wipdr_core::Vector2;
-//! let csv = "ap_000,ap_001,x,y,z,floor,building\n\
-//!            -40,-80,0,0,0,0,0\n-50,-70,1,0,0,0,0\n-60,-60,2,0,0,0,0\n-70,-50,3,0,0,0,0\n";
-//! let t = read_fingerprint_csv_from(csv.as_bytes(), "inline").unwrap();
+//! use wipdr_core::{FingerprintLabel, FingerprintTable, Vector2};
+//! let mut t = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into()]);
+//! for (i, rss) in [[-40.0, -80.0], [-50.0, -70.0], [-60.0, -60.0], [-70.0, -50.0]].iter().enumerate() {
+//!     t.push_row(rss, FingerprintLabel::at(i as f64, 0.0, 0)).unwrap();
+//! }
 //! let map = RadioMap::from_table(&t, RadioMapConfig::default()).unwrap();
 //! let mut med = MedMatcher::new(map, MedConfig { k: 1, ..MedConfig::default() }).unwrap();
 //! let f = QueryFilter::default();
@@ -348,14 +348,19 @@ impl Matcher for MedMatcher {
 mod tests {
     use super::*;
     use crate::{QueryFilter, RadioMapConfig};
-    use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
 
     /// Two places with the same fingerprint (x = 1 and x = 6) that only the past scan tells
     /// apart.
     fn ambiguous() -> RadioMap {
-        let csv = "ap_000,ap_001,x,y,z,floor,building\n\
-                   -40,-80,0,0,0,0,0\n-60,-60,1,0,0,0,0\n-45,-45,5,0,0,0,0\n-60,-60,6,0,0,0,0\n";
-        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let t = crate::test_table(
+            2,
+            &[
+                (&[-40.0, -80.0], 0.0),
+                (&[-60.0, -60.0], 1.0),
+                (&[-45.0, -45.0], 5.0),
+                (&[-60.0, -60.0], 6.0),
+            ],
+        );
         RadioMap::from_table(&t, RadioMapConfig::default()).unwrap()
     }
 
@@ -401,9 +406,14 @@ mod tests {
 
     /// Three APs, some not heard (100 in the CSV), on a line x = 0, 1, 2.
     fn partial() -> RadioMap {
-        let csv = "ap_000,ap_001,ap_002,x,y,z,floor,building\n\
-                   -40,-80,100,0,0,0,0,0\n-60,-60,-70,1,0,0,0,0\n100,-50,-70,2,0,0,0,0\n";
-        let t = read_fingerprint_csv_from(csv.as_bytes(), "t").unwrap();
+        let t = crate::test_table(
+            3,
+            &[
+                (&[-40.0, -80.0, 100.0], 0.0),
+                (&[-60.0, -60.0, -70.0], 1.0),
+                (&[100.0, -50.0, -70.0], 2.0),
+            ],
+        );
         RadioMap::from_table(&t, RadioMapConfig::default()).unwrap()
     }
 

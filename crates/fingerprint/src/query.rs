@@ -11,8 +11,8 @@
 use crate::radio_map::is_valid_rssi;
 use crate::{FingerprintError, RadioMap};
 use serde::{Deserialize, Serialize};
+use wipdr_core::FingerprintTable;
 use wipdr_core::{TimestampMs, WifiScan};
-use wipdr_io::fingerprint_csv::NOT_DETECTED;
 
 /// Online-side filtering of a scan.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
@@ -133,7 +133,7 @@ impl Query {
         let mut heard = Vec::new();
         let mut any = false;
         for (j, &v) in row.iter().enumerate() {
-            if v == NOT_DETECTED {
+            if FingerprintTable::is_not_heard(v) {
                 continue;
             }
             any = true;

@@ -4,8 +4,8 @@
 use crate::FingerprintError;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use wipdr_core::fingerprint_table::{FingerprintLabel, FingerprintTable};
 use wipdr_core::{Bssid, Point2};
-use wipdr_io::fingerprint_csv::{FingerprintLabel, FingerprintTable, NOT_DETECTED};
 
 /// Weakest RSSI accepted anywhere in the crate, dBm.
 pub const MIN_VALID_RSSI_DBM: f64 = -120.0;
@@ -171,9 +171,9 @@ pub struct ReferencePoint {
 ///
 /// ```
 /// use wipdr_fingerprint::{RadioMap, RadioMapConfig};
-/// use wipdr_io::fingerprint_csv::read_fingerprint_csv_from;
-/// let csv = "ap_000,ap_001,x,y,z,floor,building\n-60,100,1,2,0,0,0\n";
-/// let table = read_fingerprint_csv_from(csv.as_bytes(), "inline").unwrap();
+/// use wipdr_core::{FingerprintLabel, FingerprintTable};
+/// let mut table = FingerprintTable::new(vec!["ap_000".into(), "ap_001".into()]);
+/// table.push_row(&[-60.0, FingerprintTable::NOT_HEARD], FingerprintLabel::at(1.0, 2.0, 0)).unwrap();
 /// let map = RadioMap::from_table(&table, RadioMapConfig::default()).unwrap();
 /// assert_eq!(map.filled_row(0), &[-60.0, -110.0]);
 /// assert_eq!(map.rss(0, 1), None);
@@ -229,7 +229,7 @@ impl RadioMap {
         let mut row = vec![None; m];
         for (i, label) in table.labels.iter().enumerate() {
             for (slot, &v) in row.iter_mut().zip(table.row(i)) {
-                *slot = (v != NOT_DETECTED).then_some(v);
+                *slot = (!FingerprintTable::is_not_heard(v)).then_some(v);
             }
             map.push_point(point_of_label(label), &row, None)?;
         }

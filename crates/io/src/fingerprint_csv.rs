@@ -22,13 +22,14 @@
 //! assert_eq!(read_fingerprint_csv_from(&out[..], "again").unwrap(), table);
 //! ```
 
-use serde::{Deserialize, Serialize};
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
+pub use wipdr_core::fingerprint_table::{FingerprintLabel, FingerprintTable, RowLengthError};
 
-/// The RSS value that means "access point not detected" in the benchmark files.
-pub const NOT_DETECTED: f32 = 100.0;
+/// The RSS value that means "access point not detected" in the benchmark files. The reader
+/// keeps it as is: it is also the in-memory marker [`FingerprintTable::NOT_HEARD`].
+pub const NOT_DETECTED: f32 = FingerprintTable::NOT_HEARD;
 /// Weakest RSS accepted by the reader, dBm.
 pub const MIN_VALID_RSS_DBM: f32 = -120.0;
 /// Strongest RSS accepted by the reader, dBm.
@@ -107,80 +108,9 @@ pub enum FingerprintCsvError {
     Inconsistent(String),
 }
 
-/// Position and floor/building label of one row.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct FingerprintLabel {
-    /// East / map-right coordinate, metres.
-    pub x: f64,
-    /// North / map-up coordinate, metres.
-    pub y: f64,
-    /// Height, metres.
-    pub z: f64,
-    /// Floor index.
-    pub floor: i32,
-    /// Building index.
-    pub building: i32,
-}
-
-/// A whole benchmark file: AP names, a dense row-major RSS matrix and the labels.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-pub struct FingerprintTable {
-    /// The AP column names (`ap_000` …), in file order.
-    pub ap_names: Vec<String>,
-    /// RSS in dBm, row-major `n_rows x ap_names.len()`; [`NOT_DETECTED`] (100) where not heard.
-    pub rss: Vec<f32>,
-    /// One label per row.
-    pub labels: Vec<FingerprintLabel>,
-}
-
-impl FingerprintTable {
-    /// An empty table with the given AP columns.
-    pub fn new(ap_names: Vec<String>) -> Self {
-        Self {
-            ap_names,
-            rss: Vec::new(),
-            labels: Vec::new(),
-        }
-    }
-
-    /// Number of rows (reference points or queries).
-    pub fn n_rows(&self) -> usize {
-        self.labels.len()
-    }
-
-    /// Number of AP columns.
-    pub fn n_aps(&self) -> usize {
-        self.ap_names.len()
-    }
-
-    /// The raw RSS row `i` (100 = not detected). Panics if `i >= n_rows()`.
-    pub fn row(&self, i: usize) -> &[f32] {
-        let m = self.n_aps();
-        &self.rss[i * m..(i + 1) * m]
-    }
-
-    /// RSS of AP `ap` in row `i`, `None` when not detected.
-    pub fn rss_at(&self, i: usize, ap: usize) -> Option<f32> {
-        let v = self.row(i)[ap];
-        (v != NOT_DETECTED).then_some(v)
-    }
-
-    /// Appends a row; `rss` must have `n_aps()` values (100 = not detected).
-    pub fn push_row(
-        &mut self,
-        rss: &[f32],
-        label: FingerprintLabel,
-    ) -> Result<(), FingerprintCsvError> {
-        if rss.len() != self.n_aps() {
-            return Err(FingerprintCsvError::Inconsistent(format!(
-                "row has {} RSS values, table has {} APs",
-                rss.len(),
-                self.n_aps()
-            )));
-        }
-        self.rss.extend_from_slice(rss);
-        self.labels.push(label);
-        Ok(())
+impl From<RowLengthError> for FingerprintCsvError {
+    fn from(e: RowLengthError) -> Self {
+        Self::Inconsistent(e.to_string())
     }
 }
 

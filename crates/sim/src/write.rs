@@ -66,7 +66,8 @@ fn table(bssid_count: usize, points: &[SurveyPoint]) -> Result<FingerprintTable,
             floor: 0,
             building: 0,
         };
-        t.push_row(&row, label)?;
+        t.push_row(&row, label)
+            .map_err(wipdr_io::fingerprint_csv::FingerprintCsvError::from)?;
     }
     Ok(t)
 }

@@ -20,7 +20,7 @@
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::sync::Arc;
-use wipdr_fingerprint::benchmark::{self, Grid, Truth};
+use wipdr_eval::fingerprint_benchmark::{self as benchmark, Grid, Truth};
 use wipdr_fingerprint::cluster_search::{
     ClusteringMatchersConfig, build_matcher, is_clustering_matcher,
 };

@@ -2,8 +2,8 @@
 //! (`../shared/docs/evaluation.md`).
 //!
 //! For each floor and fold, the step-length coefficients (every model) and the heading
-//! offset (every source) are fitted on the training walks' waypoint legs
-//! ([`wipdr_pdr::calibrate`]); the test walks are then scored:
+//! offset (every source) are fitted on the training walks' waypoint legs by the evaluation's
+//! calibration ([`wipdr_eval::pdr_protocol`]); the test walks are then scored:
 //! (a) per leg, the relative error of the summed step lengths and the heading error of the
 //! PDR displacement against the leg; (b) PDR-only positions started at the true first
 //! waypoint, scored at every later waypoint after the walk's first Wi-Fi scan. Reported for
@@ -13,18 +13,15 @@
 
 use anyhow::{Context, Result};
 use plotters::prelude::*;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use wipdr_core::stats::{ErrorStats, folds_by_name};
+use wipdr_core::stats::ErrorStats;
 use wipdr_core::{TimestampMs, Waypoint};
+use wipdr_eval::pdr_protocol::{PdrScheme, SchemeErrors, WalkRun, run_walks, score_schemes};
 use wipdr_io::floor::{FloorData, ReadOptions};
-use wipdr_pdr::calibrate::{
-    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_step_length,
-    leg_errors, track,
-};
-use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
+use wipdr_pdr::calibrate::CalibrationConfig;
+use wipdr_pdr::{HeadingSource, PdrConfig, StepLengthConfig};
 
 /// Arguments of `wipdr pdr-eval`.
 #[derive(Debug, clap::Args)]
@@ -90,209 +87,10 @@ pub(crate) fn read_floors(
         .collect()
 }
 
-/// One walk run through the pipeline.
-pub(crate) struct WalkRun {
-    /// Walk id.
-    pub id: String,
-    /// Protocol fold.
-    pub fold: usize,
-    /// Steps under the given configuration.
-    pub steps: Vec<StepDetail>,
-    /// Waypoints.
-    pub waypoints: Vec<Waypoint>,
-    /// First Wi-Fi scan time.
-    pub first_wifi: Option<TimestampMs>,
-}
-
 /// Runs `cfg` over every walk of a floor (parallel), with folds.
 pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
-    let ids: Vec<&str> = floor
-        .walks
-        .iter()
-        .map(|w| w.walk.meta.id.as_str())
-        .collect();
-    let folds = folds_by_name(&ids);
-    floor
-        .walks
-        .par_iter()
-        .zip(folds)
-        .map(|(pw, fold)| {
-            let (steps, diag) = Pdr::run_detailed(*cfg, &pw.walk);
-            if diag != Default::default() {
-                tracing::debug!(walk = %pw.walk.meta.id, ?diag, "PDR input diagnostics");
-            }
-            WalkRun {
-                id: pw.walk.meta.id.clone(),
-                fold,
-                steps,
-                waypoints: pw.walk.waypoints.clone(),
-                first_wifi: pw.walk.wifi.first().map(|s| s.t),
-            }
-        })
-        .collect()
-}
-
-fn walk_steps(runs: &[WalkRun], keep: impl Fn(&WalkRun) -> bool) -> Vec<WalkSteps<'_>> {
-    runs.iter()
-        .filter(|r| keep(r))
-        .map(|r| WalkSteps {
-            steps: &r.steps,
-            waypoints: &r.waypoints,
-        })
-        .collect()
-}
-
-/// Calibrates `model` and the heading offset of `source` on `train`.
-pub(crate) fn calibrate(
-    model: StepLengthConfig,
-    source: HeadingSource,
-    fit_offset: bool,
-    train: &[WalkSteps<'_>],
-    cal: &CalibrationConfig,
-) -> (StepLengthConfig, f64) {
-    let cal = CalibrationConfig {
-        heading_source: source,
-        ..*cal
-    };
-    let fitted = fit_step_length(model, train, &cal);
-    let offset = if fit_offset {
-        fit_heading_offset(&fitted, source, train, &cal).unwrap_or(0.0)
-    } else {
-        0.0
-    };
-    // Re-fit lengths with the offset applied (the displacement objective sees headings).
-    if offset != 0.0 && cal.objective == wipdr_pdr::calibrate::FitObjective::Displacement {
-        let shifted: Vec<Vec<StepDetail>> = train
-            .iter()
-            .map(|w| {
-                w.steps
-                    .iter()
-                    .map(|s| shift_heading(s, source, offset))
-                    .collect()
-            })
-            .collect();
-        let train2: Vec<WalkSteps<'_>> = shifted
-            .iter()
-            .zip(train)
-            .map(|(s, w)| WalkSteps {
-                steps: s,
-                waypoints: w.waypoints,
-            })
-            .collect();
-        return (fit_step_length(model, &train2, &cal), offset);
-    }
-    (fitted, offset)
-}
-
-fn shift_heading(s: &StepDetail, source: HeadingSource, offset: f64) -> StepDetail {
-    let mut s = *s;
-    let h = &mut s.headings;
-    let slot = match source {
-        HeadingSource::RotationVector => &mut h.rotation_vector,
-        HeadingSource::Gyro => &mut h.gyro,
-        HeadingSource::GyroCompassKf => &mut h.gyro_compass_kf,
-        HeadingSource::Compass => &mut h.compass,
-    };
-    if let Some(v) = slot.as_mut() {
-        *v = wipdr_core::angle::wrap_pi(*v + offset);
-    }
-    s
-}
-
-/// A walk's steps as `(t, length, heading)`.
-type Track = Vec<(TimestampMs, f64, f64)>;
-
-/// Errors collected for one scheme.
-#[derive(Default, Clone)]
-struct Collected {
-    positions: Vec<f64>,
-    leg_length_rel: Vec<f64>,
-    leg_heading_deg: Vec<f64>,
-    offsets_deg: Vec<f64>,
-}
-
-impl Collected {
-    fn extend(&mut self, o: &Collected) {
-        self.positions.extend(&o.positions);
-        self.leg_length_rel.extend(&o.leg_length_rel);
-        self.leg_heading_deg.extend(&o.leg_heading_deg);
-        self.offsets_deg.extend(&o.offsets_deg);
-    }
-}
-
-/// A scheme to score: how its model and offset are obtained.
-#[derive(Clone, Copy)]
-struct Scheme {
-    name: &'static str,
-    model: StepLengthConfig,
-    source: HeadingSource,
-    fit_length: bool,
-    fit_offset: bool,
-    /// Whether it runs on the sample-code run (heading at step time) or the configured one.
-    on_baseline_run: bool,
-}
-
-fn score_floor(
-    base_runs: &[WalkRun],
-    runs: &[WalkRun],
-    schemes: &[Scheme],
-    cfg: &PdrConfig,
-    cal: &CalibrationConfig,
-) -> Vec<(Collected, Vec<Track>)> {
-    schemes
-        .par_iter()
-        .map(|sc| {
-            let runs = if sc.on_baseline_run { base_runs } else { runs };
-            let (min_len, max_len) = if sc.on_baseline_run {
-                (0.0, 10.0)
-            } else {
-                (cfg.min_step_length, cfg.max_step_length)
-            };
-            let mut col = Collected::default();
-            let mut tracks = vec![Vec::new(); runs.len()];
-            for fold in 0..wipdr_core::stats::FOLDS {
-                let train = walk_steps(runs, |r| r.fold != fold);
-                let (model, offset) = if sc.fit_length {
-                    calibrate(sc.model, sc.source, sc.fit_offset, &train, cal)
-                } else if sc.fit_offset {
-                    let c = CalibrationConfig {
-                        heading_source: sc.source,
-                        ..*cal
-                    };
-                    (
-                        sc.model,
-                        fit_heading_offset(&sc.model, sc.source, &train, &c).unwrap_or(0.0),
-                    )
-                } else {
-                    (sc.model, 0.0)
-                };
-                col.offsets_deg.push(offset.to_degrees());
-                for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.fold == fold) {
-                    let shifted: Vec<StepDetail> = r
-                        .steps
-                        .iter()
-                        .map(|s| shift_heading(s, sc.source, offset))
-                        .collect();
-                    let ws = WalkSteps {
-                        steps: &shifted,
-                        waypoints: &r.waypoints,
-                    };
-                    for e in leg_errors(&ws, &model, sc.source, cal) {
-                        col.leg_length_rel.push(e.length_rel);
-                        col.leg_heading_deg.push(e.heading.to_degrees());
-                    }
-                    let tr = track(&r.steps, &model, sc.source, offset, min_len, max_len);
-                    col.positions.extend(
-                        dead_reckon_at_waypoints(&tr, &r.waypoints, r.first_wifi)
-                            .iter()
-                            .map(|s| s.error),
-                    );
-                    tracks[i] = tr;
-                }
-            }
-            (col, tracks)
-        })
-        .collect()
+    let walks: Vec<&wipdr_core::Walk> = floor.walks.iter().map(|w| &w.walk).collect();
+    run_walks(&walks, cfg)
 }
 
 /// Median and p90 of absolute values.
@@ -365,58 +163,52 @@ pub fn run(args: Args) -> Result<()> {
     let floors = read_floors(&args.data, &args.cache_dir, args.no_cache)?;
     let base_cfg = PdrConfig::sample_code();
 
+    let scheme = |name: String, model, source, calibrate, fit_offset, on_baseline_run| PdrScheme {
+        name,
+        model,
+        source,
+        calibrate,
+        fit_offset,
+        on_baseline_run,
+    };
+    let rv = HeadingSource::RotationVector;
     let mut schemes = vec![
-        Scheme {
-            name: "sample_code",
-            model: base_cfg.step_length,
-            source: HeadingSource::RotationVector,
-            fit_length: false,
-            fit_offset: false,
-            on_baseline_run: true,
-        },
-        Scheme {
-            name: "sample_code+scale",
-            model: base_cfg.step_length,
-            source: HeadingSource::RotationVector,
-            fit_length: true,
-            fit_offset: false,
-            on_baseline_run: true,
-        },
-        Scheme {
-            name: "configured",
-            model: cfg.step_length,
-            source: cfg.heading.source,
-            fit_length: true,
-            fit_offset: cal.fit_heading_offset,
-            on_baseline_run: false,
-        },
+        scheme(
+            "sample_code".into(),
+            base_cfg.step_length,
+            rv,
+            false,
+            false,
+            true,
+        ),
+        scheme(
+            "sample_code+scale".into(),
+            base_cfg.step_length,
+            rv,
+            true,
+            false,
+            true,
+        ),
+        scheme(
+            "configured".into(),
+            cfg.step_length,
+            cfg.heading.source,
+            true,
+            cal.fit_heading_offset,
+            false,
+        ),
     ];
-    let names: Vec<String> = StepLengthConfig::all_defaults()
-        .iter()
-        .flat_map(|m| {
-            HeadingSource::ALL
-                .iter()
-                .map(move |s| format!("{}/{}", m.name(), s.name()))
-        })
-        .collect();
-    let leaked: &'static [String] = Box::leak(names.into_boxed_slice());
-    let mut k = 0;
+    let mut grid_names = Vec::new();
     for m in StepLengthConfig::all_defaults() {
         for s in HeadingSource::ALL {
-            schemes.push(Scheme {
-                name: leaked[k].as_str(),
-                model: m,
-                source: s,
-                fit_length: true,
-                fit_offset: cal.fit_heading_offset,
-                on_baseline_run: false,
-            });
-            k += 1;
+            let name = format!("{}/{}", m.name(), s.name());
+            grid_names.push(name.clone());
+            schemes.push(scheme(name, m, s, true, cal.fit_heading_offset, false));
         }
     }
 
-    let mut per_scheme: Vec<(Collected, BTreeMap<String, ErrorStats>)> =
-        vec![(Collected::default(), BTreeMap::new()); schemes.len()];
+    let mut per_scheme: Vec<(SchemeErrors, BTreeMap<String, ErrorStats>)> =
+        vec![(SchemeErrors::default(), BTreeMap::new()); schemes.len()];
     let mut steps_info = BTreeMap::new();
     let pb = crate::progress::bar(floors.len() as u64, "floors");
     for floor in &floors {
@@ -426,7 +218,7 @@ pub fn run(args: Args) -> Result<()> {
             floor.name.clone(),
             (runs.iter().map(|r| r.steps.len()).sum(), runs.len()),
         );
-        let scored = score_floor(&base_runs, &runs, &schemes, &cfg, &cal);
+        let scored = score_schemes((&base_runs, &base_cfg), (&runs, &cfg), &schemes, &cal);
         for (i, (col, tracks)) in scored.iter().enumerate() {
             per_scheme[i].0.extend(col);
             per_scheme[i]
@@ -446,7 +238,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut reports = BTreeMap::new();
     for (sc, (col, floors_stats)) in schemes.iter().zip(&per_scheme) {
         reports.insert(
-            sc.name.to_string(),
+            sc.name.clone(),
             SchemeReport {
                 pooled: ErrorStats::from_errors(&col.positions),
                 floors: floors_stats.clone(),
@@ -478,7 +270,7 @@ pub fn run(args: Args) -> Result<()> {
         "{:<34} {:>6} {:>6} {:>6} | {:>6} {:>6} | {:>6} {:>6} | {:>6}",
         "model/source", "mean", "p50", "p95", "len50%", "len90%", "hdg50", "hdg90", "offset"
     );
-    for name in std::iter::once("sample_code+scale").chain(leaked.iter().map(|s| s.as_str())) {
+    for name in std::iter::once("sample_code+scale").chain(grid_names.iter().map(|s| s.as_str())) {
         let r = &reports[name];
         let mean_off = if r.heading_offsets_deg.is_empty() {
             0.0

@@ -4,7 +4,8 @@
 //!
 //! Give one floor to get that floor's offset; with several floors the coefficients and the
 //! offset are fitted on all of them together. `--fold K` leaves the walks of protocol fold
-//! `K` out (fit on training folds only).
+//! `K` out (fit on training folds only). The fit is the evaluation's calibration
+//! ([`wipdr_eval::pdr_protocol::calibrate_steps`]).
 //!
 //! It also prints the PDR error expectation (paper 002 eq. 14, §5.3; [`wipdr_pdr::error_model`]):
 //! per floor (each with its own heading offset, fitted with the calibrated step-length model on
@@ -14,11 +15,13 @@
 //! the error per metre, and TCPF's `alpha` (eq. 17) for the Wi-Fi mean error
 //! `--wifi-mean-error`.
 
-use crate::cmd::pdr_eval::{WalkRun, calibrate, read_config, read_floors, run_floor};
+use crate::cmd::pdr_eval::{read_config, read_floors, run_floor};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::PathBuf;
 use wipdr_core::angle::wrap_pi;
+use wipdr_eval::folds::FOLDS;
+use wipdr_eval::pdr_protocol::{WalkRun, calibrate_steps};
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, leg_errors, track};
 use wipdr_pdr::error_model::{
     HeadingErrorFit, IntegrationConfig, error_per_metre, expected_step_error, step_heading_errors,
@@ -102,9 +105,9 @@ pub fn run(args: Args) -> Result<()> {
         None => CalibrationConfig::default(),
     };
     if let Some(f) = args.fold
-        && f >= wipdr_core::stats::FOLDS
+        && f >= FOLDS
     {
-        anyhow::bail!("--fold must be below {}", wipdr_core::stats::FOLDS);
+        anyhow::bail!("--fold must be below {}", FOLDS);
     }
     if let Some(m) = args.model {
         cfg.step_length = match m {
@@ -137,13 +140,8 @@ pub fn run(args: Args) -> Result<()> {
     if train.is_empty() {
         anyhow::bail!("no walks to fit on");
     }
-    let (model, offset) = calibrate(
-        cfg.step_length,
-        cfg.heading.source,
-        cal.fit_heading_offset,
-        &train,
-        &cal,
-    );
+    let fitted = calibrate_steps(&run_cfg, &cal, &train);
+    let (model, offset) = (fitted.step_length, fitted.heading.map_offset_rad);
     cfg.step_length = model;
     cfg.heading.map_offset_rad = offset;
 

@@ -3,7 +3,8 @@
 //! Wi-Fi scan. Skipped, with a message, when `../shared/data` is absent.
 
 use std::path::PathBuf;
-use wipdr_core::stats::{ErrorStats, FOLDS, folds_by_name};
+use wipdr_core::stats::ErrorStats;
+use wipdr_eval::folds::{FOLDS, folds_by_name};
 use wipdr_io::floor::{ReadOptions, read_floor_dir};
 use wipdr_pdr::calibrate::{
     CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_step_length,

@@ -9,15 +9,15 @@
 //! the training map holds out groups of rows that share a position (so repeated samples of a
 //! reference point never sit on both sides).
 
-use crate::distance::{Metric, Plgd, Representation};
-use crate::knn::{KnnConfig, KnnMatcher};
-use crate::matcher::{Matcher, Weighting, majority, weights_of};
-use crate::{FingerprintError, Query, RadioMap};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::sync::Arc;
 use wipdr_core::stats::ErrorStats;
 use wipdr_core::{Point2, WifiObservation};
+use wipdr_fingerprint::distance::{Metric, Plgd, Representation};
+use wipdr_fingerprint::knn::{KnnConfig, KnnMatcher};
+use wipdr_fingerprint::matcher::{Matcher, Weighting, majority, weights_of};
+use wipdr_fingerprint::{FingerprintError, Query, RadioMap};
 
 /// Height of one floor for the 3D error, metres.
 pub const FLOOR_HEIGHT_M: f64 = 4.0;
@@ -401,7 +401,7 @@ pub fn evaluate(matcher: &dyn Matcher, queries: &[Query], truth: &[Truth]) -> (S
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::radio_map::{ApVocabulary, RadioMapConfig, ReferencePoint};
+    use wipdr_fingerprint::radio_map::{ApVocabulary, RadioMapConfig, ReferencePoint};
 
     /// A 1D corridor: AP j at x = 10 j, RSS = -30 - 2 |x - 10 j| (heard within 30 m).
     fn corridor(step: f64) -> RadioMap {
@@ -458,7 +458,11 @@ mod tests {
         .unwrap();
         let (mut queries, mut truth) = (Vec::new(), Vec::new());
         for i in 0..test.n_rows() {
-            if let Ok(q) = Query::from_row(test.row(i), &map, &crate::QueryFilter::default()) {
+            if let Ok(q) = Query::from_row(
+                test.row(i),
+                &map,
+                &wipdr_fingerprint::QueryFilter::default(),
+            ) {
                 queries.push(q);
                 let l = &test.labels[i];
                 truth.push(Truth {

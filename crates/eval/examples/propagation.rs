@@ -1,7 +1,7 @@
 //! Path-loss radio-map extension on real ILC floors: fit, extension and leave-out checks.
 //!
 //! ```text
-//! cargo run --release -p wipdr-fingerprint --example propagation [FLOOR_DIR ...]
+//! cargo run --release -p wipdr-eval --example propagation [FLOOR_DIR ...]
 //! ```
 //!
 //! Default floors: `../shared/data/ilc20/site2/F2` and `site2/F3` (relative to the
@@ -21,7 +21,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::Point2;
-use wipdr_core::stats::folds_by_name;
+use wipdr_eval::folds::folds_by_name;
 use wipdr_fingerprint::RadioMap;
 use wipdr_fingerprint::propagation::{
     ApModel, PropagationConfig, extend_radio_map, fit_ap_models_with_report,

@@ -1,11 +1,11 @@
 //! Accuracy on the public benchmarks against the scikit-learn reference of issue 3:
 //! 1-NN and distance-weighted 5-NN, Euclidean, "not heard" = -110 dBm, mean 2D error within
 //! 2 %. Runs only when `../shared/data/fingerprint` exists. The small datasets run by default;
-//! all nine with `cargo test -p wipdr-fingerprint --release -- --ignored`.
+//! all nine with `cargo test -p wipdr-eval --release -- --ignored`.
 
 use std::path::PathBuf;
 use std::sync::Arc;
-use wipdr_fingerprint::benchmark::{Truth, evaluate};
+use wipdr_eval::fingerprint_benchmark::{Truth, evaluate};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Query, QueryFilter, RadioMap, RadioMapConfig};
 use wipdr_io::fingerprint_csv::read_dataset;
 
