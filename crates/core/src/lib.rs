@@ -24,6 +24,7 @@
 pub mod angle;
 pub mod error;
 pub mod floor;
+pub mod grid;
 pub mod imu;
 pub mod observation;
 pub mod stats;
@@ -33,6 +34,7 @@ pub mod wifi;
 
 pub use error::CoreError;
 pub use floor::{FloorPlan, Polygon, Segment, Unit};
+pub use grid::{GridError, GridSpec};
 pub use imu::{ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample};
 pub use observation::{Candidate, WifiObservation};
 pub use step::{MotionState, SpeedClass, StepEvent, TurnState};
