@@ -204,6 +204,37 @@ mod tests {
         assert_eq!(t[1].b, Point2::new(3.0, 0.0));
     }
 
+    /// Every cell holds, bit for bit, the capped distance of its centre to the nearest
+    /// segment: stamping each segment's box misses no cell within the cap.
+    #[test]
+    fn stamping_equals_the_brute_force_raster() {
+        let segments = [
+            Segment {
+                a: Point2::new(0.0, 0.0),
+                b: Point2::new(7.3, 2.1),
+            },
+            Segment {
+                a: Point2::new(7.3, 2.1),
+                b: Point2::new(7.3, -4.9),
+            },
+            Segment {
+                a: Point2::new(-3.2, 5.5),
+                b: Point2::new(-3.2, 5.5),
+            },
+        ];
+        let cap = 2.7;
+        let r = TrailRaster::new(&segments, 0.4, cap).unwrap();
+        let g = *r.grid();
+        for (c, row) in g.cells() {
+            let centre = g.centre(c, row);
+            let exact = segments
+                .iter()
+                .map(|s| distance_to_segment(centre, s).min(cap) as f32)
+                .fold(cap as f32, f32::min);
+            assert_eq!(r.distance[g.index(c, row)], exact, "cell ({c}, {row})");
+        }
+    }
+
     proptest! {
         /// The raster's distance is within a cell's half-diagonal of the exact distance
         /// (it is exact at cell centres), capped.

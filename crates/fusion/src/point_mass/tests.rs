@@ -153,6 +153,33 @@ fn gap_raster_marks_cells_beyond_the_distance() {
     assert!(GapRaster::new(&[], 1.0, 8.0, (Point2::origin(), Point2::new(1.0, 1.0))).is_none());
 }
 
+/// An extent too large (1e20, 1e308 apart) or non-finite gives no gap raster, not a panic
+/// (the old `ceil() as usize + 1` overflowed, or wrapped to an empty raster in release).
+#[test]
+fn a_gap_raster_over_an_absurd_extent_is_none() {
+    let points = [Point2::new(1.0, 1.0)];
+    for (lo, hi) in [
+        (Point2::new(0.0, 0.0), Point2::new(1e20, 1.0)),
+        (Point2::new(0.0, -1e308), Point2::new(1.0, 1e308)),
+        (Point2::new(-f64::MAX, 0.0), Point2::new(f64::MAX, 1.0)),
+        (Point2::new(f64::NAN, 0.0), Point2::new(1.0, 1.0)),
+        (Point2::new(0.0, 0.0), Point2::new(f64::INFINITY, 1.0)),
+    ] {
+        assert!(
+            GapRaster::new(&points, 1.0, 8.0, (lo, hi)).is_none(),
+            "{lo:?} {hi:?}"
+        );
+    }
+    // Far reference points are simply outside a sane raster.
+    let far = [
+        Point2::new(1e20, 1.0),
+        Point2::new(f64::NAN, 1.0),
+        Point2::new(2.0, 2.0),
+    ];
+    let g = GapRaster::new(&far, 1.0, 3.0, (Point2::origin(), Point2::new(10.0, 10.0))).unwrap();
+    assert!(!g.is_gap(Point2::new(2.5, 2.5)) && g.is_gap(Point2::new(9.5, 9.5)));
+}
+
 #[test]
 fn a_given_start_is_kept_by_a_pdr_walk() {
     let mut f = PointMassFilter::new(
