@@ -103,7 +103,11 @@ pub fn checked_usize(v: f64, limit: usize) -> Option<usize> {
 /// ```
 pub fn checked_i64(v: f64) -> Option<i64> {
     const BOUND: f64 = (1u64 << 62) as f64;
-    (v.is_finite() && v.abs() <= BOUND).then(|| v as i64)
+    if v.is_finite() && v.abs() <= BOUND {
+        Some(v as i64)
+    } else {
+        None
+    }
 }
 
 /// Geometry of a square raster; see the [module docs](self).
@@ -565,7 +569,7 @@ mod tests {
                 GridSpec::covering_inclusive(lo, hi, cell, limit),
                 GridSpec::covering(Point2::new(a, x), Point2::new(b, y), cell, limit),
             ].into_iter().flatten() {
-                prop_assert!(g.len() <= limit && g.len() > 0);
+                prop_assert!(g.len() <= limit && g.cols() > 0 && g.rows() > 0);
                 if let Some((c, r)) = g.cell_of(Point2::new(x, y)) {
                     prop_assert!(c < g.cols() && r < g.rows());
                 }
