@@ -203,11 +203,14 @@ where
         Some(cell) => {
             let mut cells: BTreeMap<(i64, i64), Vec<usize>> = BTreeMap::new();
             for (i, f) in prints.iter().enumerate() {
-                let key = (
-                    (f.position.x / cell).floor() as i64,
-                    (f.position.y / cell).floor() as i64,
-                );
-                cells.entry(key).or_default().push(i);
+                // Checked: a position so far out (or non-finite) that its bin does not fit
+                // an i64 would otherwise saturate into one bin with every other such point.
+                let bin = |v: f64| wipdr_core::grid::checked_i64((v / cell).floor());
+                let (Some(bx), Some(by)) = (bin(f.position.x), bin(f.position.y)) else {
+                    tracing::warn!(position = ?f.position, "fingerprint off any grid bin; skipped");
+                    continue;
+                };
+                cells.entry((bx, by)).or_default().push(i);
             }
             let mut sum = vec![0f64; m];
             let mut sum_sq = vec![0f64; m];

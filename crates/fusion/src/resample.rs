@@ -80,7 +80,8 @@ pub fn residual<R: Rng + ?Sized>(weights: &[f64], rng: &mut R) -> Vec<usize> {
     let mut residuals = Vec::with_capacity(n);
     for (i, w) in weights.iter().enumerate() {
         let w = if w.is_finite() && *w > 0.0 { *w } else { 0.0 };
-        let copies = (n as f64 * w).floor() as usize;
+        // Checked: an unnormalised weight (n w > n) still gives at most n copies.
+        let copies = wipdr_core::grid::checked_usize((n as f64 * w).floor(), n).unwrap_or(n);
         out.extend(std::iter::repeat_n(i, copies.min(n - out.len().min(n))));
         residuals.push(n as f64 * w - copies as f64);
     }

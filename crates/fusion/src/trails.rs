@@ -24,7 +24,7 @@
 //! assert_eq!(r.distance(Point2::new(5.0, 40.0)), 5.0); // beyond the cap
 //! ```
 
-use wipdr_core::{Point2, Segment};
+use wipdr_core::{GridSpec, Point2, Segment};
 
 use crate::FusionError;
 
@@ -34,10 +34,7 @@ pub const MAX_CELLS: usize = 16 << 20;
 /// Distance to the nearest training trail, per cell; see the [module docs](self).
 #[derive(Debug, Clone)]
 pub struct TrailRaster {
-    origin: Point2,
-    cell_m: f64,
-    nx: usize,
-    ny: usize,
+    grid: GridSpec,
     max_distance_m: f64,
     distance: Vec<f32>,
 }
@@ -96,37 +93,25 @@ impl TrailRaster {
             }
         }
         let m = max_distance_m + cell_m;
-        let origin = Point2::new(lo.x - m, lo.y - m);
-        let nx = ((hi.x - lo.x + 2.0 * m) / cell_m).ceil() as usize + 1;
-        let ny = ((hi.y - lo.y + 2.0 * m) / cell_m).ceil() as usize + 1;
-        if nx.saturating_mul(ny) > MAX_CELLS {
-            return Err(invalid(
-                "cell_m",
-                format!("a {nx} x {ny} trail raster is larger than {MAX_CELLS} cells"),
-            ));
-        }
-        let mut distance = vec![max_distance_m as f32; nx * ny];
+        let grid = GridSpec::covering_inclusive(
+            Point2::new(lo.x - m, lo.y - m),
+            Point2::new(hi.x + m, hi.y + m),
+            cell_m,
+            MAX_CELLS,
+        )
+        .map_err(|e| invalid("trails", format!("no trail raster over these trails: {e}")))?;
+        let mut distance = vec![max_distance_m as f32; grid.len()];
+        let grow = wipdr_core::Vector2::new(max_distance_m, max_distance_m);
         for s in finite {
-            let (x0, x1) = (
-                s.a.x.min(s.b.x) - max_distance_m,
-                s.a.x.max(s.b.x) + max_distance_m,
-            );
-            let (y0, y1) = (
-                s.a.y.min(s.b.y) - max_distance_m,
-                s.a.y.max(s.b.y) + max_distance_m,
-            );
-            let c0 = ((x0 - origin.x) / cell_m).floor().max(0.0) as usize;
-            let c1 = (((x1 - origin.x) / cell_m).ceil() as usize).min(nx - 1);
-            let r0 = ((y0 - origin.y) / cell_m).floor().max(0.0) as usize;
-            let r1 = (((y1 - origin.y) / cell_m).ceil() as usize).min(ny - 1);
-            for r in r0..=r1 {
-                for c in c0..=c1 {
-                    let centre = Point2::new(
-                        origin.x + (c as f64 + 0.5) * cell_m,
-                        origin.y + (r as f64 + 0.5) * cell_m,
-                    );
-                    let d = distance_to_segment(centre, s).min(max_distance_m) as f32;
-                    let v = &mut distance[r * nx + c];
+            let box_lo = Point2::new(s.a.x.min(s.b.x), s.a.y.min(s.b.y)) - grow;
+            let box_hi = Point2::new(s.a.x.max(s.b.x), s.a.y.max(s.b.y)) + grow;
+            let Some((cols, rows)) = grid.cells_overlapping(box_lo, box_hi) else {
+                continue;
+            };
+            for r in rows {
+                for c in cols.clone() {
+                    let d = distance_to_segment(grid.centre(c, r), s).min(max_distance_m) as f32;
+                    let v = &mut distance[grid.index(c, r)];
                     if d < *v {
                         *v = d;
                     }
@@ -134,10 +119,7 @@ impl TrailRaster {
             }
         }
         Ok(Self {
-            origin,
-            cell_m,
-            nx,
-            ny,
+            grid,
             max_distance_m,
             distance,
         })
@@ -146,12 +128,14 @@ impl TrailRaster {
     /// Distance from `p` (its cell's centre) to the nearest trail, capped at the raster's
     /// cap (also beyond the raster or for a non-finite point).
     pub fn distance(&self, p: Point2) -> f64 {
-        let cx = ((p.x - self.origin.x) / self.cell_m).floor();
-        let cy = ((p.y - self.origin.y) / self.cell_m).floor();
-        if !(cx >= 0.0 && cy >= 0.0 && cx < self.nx as f64 && cy < self.ny as f64) {
-            return self.max_distance_m;
-        }
-        f64::from(self.distance[cy as usize * self.nx + cx as usize])
+        self.grid
+            .index_of(p)
+            .map_or(self.max_distance_m, |i| f64::from(self.distance[i]))
+    }
+
+    /// The raster's cells.
+    pub fn grid(&self) -> &GridSpec {
+        &self.grid
     }
 
     /// The distance cap, metres.
@@ -218,6 +202,37 @@ mod tests {
         assert_eq!(t.len(), 2);
         assert_eq!(t[1].a, Point2::new(1.0, 0.0));
         assert_eq!(t[1].b, Point2::new(3.0, 0.0));
+    }
+
+    /// Every cell holds, bit for bit, the capped distance of its centre to the nearest
+    /// segment: stamping each segment's box misses no cell within the cap.
+    #[test]
+    fn stamping_equals_the_brute_force_raster() {
+        let segments = [
+            Segment {
+                a: Point2::new(0.0, 0.0),
+                b: Point2::new(7.3, 2.1),
+            },
+            Segment {
+                a: Point2::new(7.3, 2.1),
+                b: Point2::new(7.3, -4.9),
+            },
+            Segment {
+                a: Point2::new(-3.2, 5.5),
+                b: Point2::new(-3.2, 5.5),
+            },
+        ];
+        let cap = 2.7;
+        let r = TrailRaster::new(&segments, 0.4, cap).unwrap();
+        let g = *r.grid();
+        for (c, row) in g.cells() {
+            let centre = g.centre(c, row);
+            let exact = segments
+                .iter()
+                .map(|s| distance_to_segment(centre, s).min(cap) as f32)
+                .fold(cap as f32, f32::min);
+            assert_eq!(r.distance[g.index(c, row)], exact, "cell ({c}, {row})");
+        }
     }
 
     proptest! {

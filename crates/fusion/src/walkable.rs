@@ -37,7 +37,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
-use wipdr_core::{FloorPlan, Point2, Polygon, StepEvent, WifiObservation};
+use wipdr_core::{FloorPlan, GridSpec, Point2, Polygon, StepEvent, WifiObservation};
 
 use crate::{Estimate, Fuser, FusionError, WeightedPoint};
 
@@ -61,27 +61,17 @@ pub const MAX_CELLS: usize = 64 << 20;
 pub struct WalkableGrid {
     plan: Arc<FloorPlan>,
     unit_boxes: Vec<(Point2, Point2)>,
-    origin: Point2,
-    cell_m: f64,
-    nx: usize,
-    ny: usize,
+    grid: GridSpec,
     class: Vec<CellClass>,
     /// For each cell, the index of the nearest walkable cell (`u32::MAX` when the plan has
     /// no walkable cell at all).
     nearest: Vec<u32>,
 }
 
-fn fill_rings(
-    rings: &[&[Point2]],
-    origin: Point2,
-    cell_m: f64,
-    nx: usize,
-    ny: usize,
-    mut set: impl FnMut(usize),
-) {
+fn fill_rings(rings: &[&[Point2]], grid: &GridSpec, mut set: impl FnMut(usize)) {
     let mut xs: Vec<f64> = Vec::new();
-    for row in 0..ny {
-        let y = origin.y + (row as f64 + 0.5) * cell_m;
+    for row in 0..grid.rows() {
+        let y = grid.centre_y(row);
         xs.clear();
         for ring in rings {
             let n = ring.len();
@@ -94,16 +84,8 @@ fn fill_rings(
         }
         xs.sort_by(f64::total_cmp);
         for pair in xs.chunks_exact(2) {
-            // cells whose centre x lies in [pair[0], pair[1])
-            let c0 = ((pair[0] - origin.x) / cell_m - 0.5).ceil().max(0.0) as usize;
-            let c1f = ((pair[1] - origin.x) / cell_m - 0.5).ceil();
-            let c1 = if c1f <= 0.0 {
-                0
-            } else {
-                (c1f as usize).min(nx)
-            };
-            for col in c0..c1 {
-                set(row * nx + col);
+            for col in grid.cols_with_centre_in(pair[0], pair[1]) {
+                set(grid.index(col, row));
             }
         }
     }
@@ -119,11 +101,12 @@ impl WalkableGrid {
     /// Rasterises `plan` at `cell_m` metres per cell over the plan's extent (outline bounding
     /// box and `[0, width] x [0, height]`, whichever is larger).
     pub fn new(plan: &FloorPlan, cell_m: f64) -> Result<Self, FusionError> {
+        let invalid = |reason: String| FusionError::InvalidConfig {
+            field: "walkable.cell_m",
+            reason,
+        };
         if !(cell_m.is_finite() && cell_m > 0.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "walkable.cell_m",
-                reason: format!("must be finite and > 0, got {cell_m}"),
-            });
+            return Err(invalid(format!("must be finite and > 0, got {cell_m}")));
         }
         let mut lo = Point2::new(0.0, 0.0);
         let mut hi = Point2::new(plan.width, plan.height);
@@ -132,36 +115,24 @@ impl WalkableGrid {
             lo = Point2::new(lo.x.min(a.x), lo.y.min(a.y));
             hi = Point2::new(hi.x.max(b.x), hi.y.max(b.y));
         }
-        let nx = ((hi.x - lo.x) / cell_m).ceil().max(1.0);
-        let ny = ((hi.y - lo.y) / cell_m).ceil().max(1.0);
-        if !(nx.is_finite() && ny.is_finite()) || nx * ny > MAX_CELLS as f64 {
-            return Err(FusionError::InvalidConfig {
-                field: "walkable.cell_m",
-                reason: format!("a {nx} x {ny} grid is larger than {MAX_CELLS} cells"),
-            });
-        }
-        let (nx, ny) = (nx as usize, ny as usize);
-        let mut class = vec![CellClass::Outside; nx * ny];
+        let grid = GridSpec::covering(lo, hi, cell_m, MAX_CELLS)
+            .map_err(|e| invalid(format!("no walkable grid over this plan: {e}")))?;
+        let mut class = vec![CellClass::Outside; grid.len()];
         for o in &plan.outline {
-            fill_rings(&polygon_rings(o), lo, cell_m, nx, ny, |i| {
-                class[i] = CellClass::Walkable
-            });
+            fill_rings(&polygon_rings(o), &grid, |i| class[i] = CellClass::Walkable);
         }
         for u in &plan.units {
-            fill_rings(&polygon_rings(&u.polygon), lo, cell_m, nx, ny, |i| {
+            fill_rings(&polygon_rings(&u.polygon), &grid, |i| {
                 if class[i] == CellClass::Walkable {
                     class[i] = CellClass::Unit;
                 }
             });
         }
-        let nearest = nearest_walkable(&class, nx, ny);
+        let nearest = nearest_walkable(&class, &grid);
         Ok(Self {
             unit_boxes: plan.units.iter().map(|u| u.polygon.bbox()).collect(),
             plan: Arc::new(plan.clone()),
-            origin: lo,
-            cell_m,
-            nx,
-            ny,
+            grid,
             class,
             nearest,
         })
@@ -172,38 +143,34 @@ impl WalkableGrid {
         &self.plan
     }
 
+    /// The raster's cells.
+    pub fn grid(&self) -> &GridSpec {
+        &self.grid
+    }
+
     /// Cell size, metres.
     pub fn cell_m(&self) -> f64 {
-        self.cell_m
+        self.grid.cell_m()
     }
 
     /// Lower-left corner of the grid, metres.
     pub fn origin(&self) -> Point2 {
-        self.origin
+        self.grid.origin()
     }
 
     /// Columns and rows.
     pub fn dims(&self) -> (usize, usize) {
-        (self.nx, self.ny)
+        self.grid.dims()
     }
 
-    /// Cell index of `p`, `None` outside the grid or non-finite.
+    /// Cell index of `p` (row-major), `None` outside the grid or non-finite.
     pub fn cell_of(&self, p: Point2) -> Option<usize> {
-        let cx = ((p.x - self.origin.x) / self.cell_m).floor();
-        let cy = ((p.y - self.origin.y) / self.cell_m).floor();
-        if !(cx >= 0.0 && cy >= 0.0 && cx < self.nx as f64 && cy < self.ny as f64) {
-            return None;
-        }
-        Some(cy as usize * self.nx + cx as usize)
+        self.grid.index_of(p)
     }
 
-    /// Centre of cell `i`.
+    /// Centre of cell `i` (row-major index).
     pub fn centre(&self, i: usize) -> Point2 {
-        let (row, col) = (i / self.nx, i % self.nx);
-        Point2::new(
-            self.origin.x + (col as f64 + 0.5) * self.cell_m,
-            self.origin.y + (row as f64 + 0.5) * self.cell_m,
-        )
+        self.grid.centre_of_index(i)
     }
 
     /// Class of the cell containing `p` (outside the grid: [`CellClass::Outside`]).
@@ -251,16 +218,8 @@ impl WalkableGrid {
             Some(i) => self.nearest[i],
             None => {
                 // Outside the grid: clamp into it, then look up.
-                let q = Point2::new(
-                    p.x.clamp(
-                        self.origin.x,
-                        self.origin.x + self.nx as f64 * self.cell_m - 1e-9,
-                    ),
-                    p.y.clamp(
-                        self.origin.y,
-                        self.origin.y + self.ny as f64 * self.cell_m - 1e-9,
-                    ),
-                );
+                let (lo, hi) = (self.grid.origin(), self.grid.far_corner());
+                let q = Point2::new(p.x.clamp(lo.x, hi.x - 1e-9), p.y.clamp(lo.y, hi.y - 1e-9));
                 self.cell_of(q).map_or(u32::MAX, |i| self.nearest[i])
             }
         };
@@ -289,7 +248,8 @@ impl WalkableGrid {
 
 /// Multi-source BFS of the nearest walkable cell (8-neighbourhood, each cell keeps the seed
 /// whose centre is closest among those offered by its neighbours).
-fn nearest_walkable(class: &[CellClass], nx: usize, ny: usize) -> Vec<u32> {
+fn nearest_walkable(class: &[CellClass], grid: &GridSpec) -> Vec<u32> {
+    let nx = grid.cols();
     let mut nearest = vec![u32::MAX; class.len()];
     let mut queue = VecDeque::new();
     for (i, c) in class.iter().enumerate() {
@@ -305,20 +265,14 @@ fn nearest_walkable(class: &[CellClass], nx: usize, ny: usize) -> Vec<u32> {
     };
     while let Some(i) = queue.pop_front() {
         let seed = nearest[i] as usize;
-        let (row, col) = ((i / nx) as i64, (i % nx) as i64);
-        for dr in -1..=1i64 {
-            for dc in -1..=1i64 {
-                let (r, c) = (row + dr, col + dc);
-                if (dr == 0 && dc == 0) || r < 0 || c < 0 || r >= ny as i64 || c >= nx as i64 {
-                    continue;
-                }
-                let j = r as usize * nx + c as usize;
-                if nearest[j] == u32::MAX || d2(j, seed) < d2(j, nearest[j] as usize) {
-                    let first = nearest[j] == u32::MAX;
-                    nearest[j] = seed as u32;
-                    if first || class[j] != CellClass::Walkable {
-                        queue.push_back(j);
-                    }
+        let (col, row) = grid.col_row(i);
+        for (c, r) in grid.neighbours8(col, row) {
+            let j = grid.index(c, r);
+            if nearest[j] == u32::MAX || d2(j, seed) < d2(j, nearest[j] as usize) {
+                let first = nearest[j] == u32::MAX;
+                nearest[j] = seed as u32;
+                if first || class[j] != CellClass::Walkable {
+                    queue.push_back(j);
                 }
             }
         }

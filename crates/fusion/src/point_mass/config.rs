@@ -1,0 +1,142 @@
+//! The config of `pmf` and its checks.
+
+use serde::{Deserialize, Serialize};
+
+use crate::FusionError;
+
+/// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`
+/// and docs/results/fusion-real.md), so they are optimistic there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PointMassConfig {
+    /// Lattice spacing of the offset hypotheses, metres.
+    pub cell_m: f64,
+    /// Margin around the floor plan (or, without a plan, half-width of the lattice around
+    /// the first fix), metres.
+    pub margin_m: f64,
+    /// Variance added to the offset per step (PDR drift), m².
+    pub drift_m2_per_step: f64,
+    /// Weight of a hypothesis whose position is inside a unit, per step.
+    pub unit_likelihood: f64,
+    /// Weight of a hypothesis whose position is outside the floor outline, per step.
+    pub outside_likelihood: f64,
+    /// Standard deviation of a good Wi-Fi fix, metres.
+    pub wifi_sd_m: f64,
+    /// Outlier floor of the Wi-Fi likelihood (relative to its peak of 1).
+    pub wifi_outlier: f64,
+    /// Distance from the nearest reference point beyond which a position counts as a
+    /// coverage gap, metres (0: no coverage awareness; also off when the filter is built
+    /// without the radio map's reference points).
+    pub gap_distance_m: f64,
+    /// Peak Wi-Fi likelihood of a hypothesis in a coverage gap (relative to a peak of 1 in
+    /// covered space): a fix there lands at some covered place near the walker, so the
+    /// likelihood is a wide Gaussian of standard deviation `gap_sd_m` (plus the outlier floor).
+    pub gap_likelihood: f64,
+    /// Standard deviation of the fix about a walker in a coverage gap, metres.
+    pub gap_sd_m: f64,
+    /// Recovery floor after each update, as a share of the uniform probability.
+    pub recovery: f64,
+    /// Radius around the most probable cell over which the estimate is averaged, metres
+    /// (0: the whole posterior).
+    pub estimate_radius_m: f64,
+    /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
+    /// matcher's distance unit; 0: every fix trusted alike).
+    pub quality_distance: f64,
+    /// Softness of that logistic, in the same unit.
+    pub quality_softness: f64,
+    /// Half-width of the square over which a mode's probability is summed, metres.
+    pub mode_radius_m: f64,
+    /// Keep the previous mode while it holds at least this share of the best mode's mass.
+    pub mode_hysteresis: f64,
+    /// Multiplies every step length (1 = as PDR reports).
+    pub step_scale: f64,
+    /// Width (a Gaussian's standard deviation, metres) of the training trails
+    /// ([`crate::trails`]) in the per-step weight; 0 turns the trail prior off (also off when
+    /// the filter is built without trails).
+    pub trail_sd_m: f64,
+    /// Per-step weight of a hypothesis far from every training trail (relative to 1 on a
+    /// trail): the weight is `off + (1 - off) exp(-d² / 2 trail_sd_m²)`.
+    pub off_trail_likelihood: f64,
+}
+
+impl Default for PointMassConfig {
+    fn default() -> Self {
+        Self {
+            cell_m: 1.0,
+            margin_m: 10.0,
+            drift_m2_per_step: 0.05,
+            unit_likelihood: 0.8,
+            outside_likelihood: 0.3,
+            wifi_sd_m: 6.0,
+            wifi_outlier: 0.1,
+            gap_distance_m: 15.0,
+            gap_likelihood: 0.3,
+            gap_sd_m: 20.0,
+            recovery: 1e-6,
+            estimate_radius_m: 10.0,
+            quality_distance: 0.0,
+            quality_softness: 5.0,
+            mode_radius_m: 5.0,
+            mode_hysteresis: 0.5,
+            step_scale: 1.0,
+            trail_sd_m: 0.0,
+            off_trail_likelihood: 0.5,
+        }
+    }
+}
+
+impl PointMassConfig {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), FusionError> {
+        let positive = [
+            ("cell_m", self.cell_m),
+            ("wifi_sd_m", self.wifi_sd_m),
+            ("gap_sd_m", self.gap_sd_m),
+            ("quality_softness", self.quality_softness),
+            ("step_scale", self.step_scale),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be finite and > 0, got {v}"),
+                });
+            }
+        }
+        let non_negative = [
+            ("margin_m", self.margin_m),
+            ("drift_m2_per_step", self.drift_m2_per_step),
+            ("wifi_outlier", self.wifi_outlier),
+            ("gap_distance_m", self.gap_distance_m),
+            ("recovery", self.recovery),
+            ("estimate_radius_m", self.estimate_radius_m),
+            ("mode_radius_m", self.mode_radius_m),
+            ("quality_distance", self.quality_distance),
+            ("trail_sd_m", self.trail_sd_m),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be finite and >= 0, got {v}"),
+                });
+            }
+        }
+        let probabilities = [
+            ("unit_likelihood", self.unit_likelihood),
+            ("outside_likelihood", self.outside_likelihood),
+            ("gap_likelihood", self.gap_likelihood),
+            ("mode_hysteresis", self.mode_hysteresis),
+            ("off_trail_likelihood", self.off_trail_likelihood),
+        ];
+        for (field, v) in probabilities {
+            if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+                return Err(FusionError::InvalidConfig {
+                    field,
+                    reason: format!("must be in (0, 1], got {v}"),
+                });
+            }
+        }
+        Ok(())
+    }
+}

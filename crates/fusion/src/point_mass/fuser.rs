@@ -1,0 +1,157 @@
+//! The step likelihood (walkable class, trails) and the Wi-Fi likelihood (robust, coverage
+//! aware) of `pmf`, behind [`Fuser`].
+
+use wipdr_core::{Point2, StepEvent, Vector2, WifiObservation, angle};
+
+use super::{NO_CELL, PointMassFilter};
+use crate::walkable::CellClass;
+use crate::{Estimate, Fuser};
+
+impl Fuser for PointMassFilter {
+    fn name(&self) -> &'static str {
+        "pmf"
+    }
+
+    fn on_step(&mut self, step: &StepEvent) {
+        if !self.guard.accept_step(step) {
+            return;
+        }
+        self.t = step.t;
+        self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
+        if !self.initialised {
+            return;
+        }
+        let h = self.cfg.cell_m;
+        self.pending_drift += self.cfg.drift_m2_per_step;
+        while self.pending_drift >= 0.5 * h * h {
+            self.blur();
+            self.pending_drift -= 0.5 * h * h;
+        }
+        let trails = self.trails.clone().filter(|_| self.cfg.trail_sd_m > 0.0);
+        let (off, trail_inv) = (
+            self.cfg.off_trail_likelihood,
+            1.0 / (2.0 * self.cfg.trail_sd_m * self.cfg.trail_sd_m),
+        );
+        let trail_weight = |pos: Point2| match &trails {
+            Some(t) => {
+                let d = t.distance(pos);
+                off + (1.0 - off) * (-d * d * trail_inv).exp()
+            }
+            None => 1.0,
+        };
+        let total = if let Some(grid) = self.walkable.clone() {
+            let (unit, outside) = (self.cfg.unit_likelihood, self.cfg.outside_likelihood);
+            let raster = *grid.grid();
+            let class_weight = |row: usize, column: usize| {
+                if row == NO_CELL || column == NO_CELL {
+                    return outside;
+                }
+                match grid.class_of_cell(raster.index(column, row)) {
+                    CellClass::Walkable => 1.0,
+                    CellClass::Unit => unit,
+                    CellClass::Outside => outside,
+                }
+            };
+            Some(self.weigh(
+                |x| raster.col_of(x).unwrap_or(NO_CELL),
+                |y, xs, columns, weights| {
+                    // `class_at(pos)` split into its row (once per row) and column lookups.
+                    let row = raster.row_of(y).unwrap_or(NO_CELL);
+                    if trails.is_none() {
+                        for (weight, &column) in weights.iter_mut().zip(columns) {
+                            *weight = class_weight(row, column);
+                        }
+                    } else {
+                        let cells = weights.iter_mut().zip(columns).zip(xs);
+                        for ((weight, &column), &x) in cells {
+                            *weight = class_weight(row, column) * trail_weight(Point2::new(x, y));
+                        }
+                    }
+                },
+            ))
+        } else if trails.is_some() {
+            Some(self.weigh(
+                |_| NO_CELL,
+                |y, xs, _, weights| {
+                    for (weight, &x) in weights.iter_mut().zip(xs) {
+                        *weight = trail_weight(Point2::new(x, y));
+                    }
+                },
+            ))
+        } else {
+            None
+        };
+        self.normalise(total);
+        self.choose_mode();
+    }
+
+    fn on_wifi(&mut self, obs: &WifiObservation) {
+        if !self.guard.accept_wifi(obs) {
+            return;
+        }
+        self.t = obs.t;
+        if !self.initialised {
+            let m = Vector2::new(100.0, 100.0);
+            if self
+                .lay_lattice(obs.estimate - m, obs.estimate + m)
+                .is_err()
+            {
+                return;
+            }
+        }
+        let f = obs.estimate;
+        // Fix quality: a poor best match (large signal distance) is likely a coverage gap or
+        // a gross fix, so its Gaussian part is down-weighted (a logistic in the distance).
+        let trust = match obs.best_distance() {
+            Some(d) if self.cfg.quality_distance > 0.0 && d.is_finite() => {
+                1.0 / (1.0 + ((d - self.cfg.quality_distance) / self.cfg.quality_softness).exp())
+            }
+            _ => 1.0,
+        };
+        let inv = 1.0 / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
+        let (outlier, gap_like) = (self.cfg.wifi_outlier, self.cfg.gap_likelihood);
+        let gap_inv = 1.0 / (2.0 * self.cfg.gap_sd_m * self.cfg.gap_sd_m);
+        // `is_gap(pos)` split into its row and column lookups, as in `on_step`.
+        let gap = self.gap.take();
+        let total = self.weigh(
+            |x| {
+                gap.as_ref()
+                    .and_then(|g| g.grid.col_of(x))
+                    .unwrap_or(NO_CELL)
+            },
+            |y, xs, columns, weights| {
+                let gap_row = gap
+                    .as_ref()
+                    .and_then(|g| g.grid.row_of(y))
+                    .unwrap_or(NO_CELL);
+                for ((weight, &column), &x) in weights.iter_mut().zip(columns).zip(xs) {
+                    let r2 = (f - Point2::new(x, y)).norm_squared();
+                    let in_gap = gap.as_ref().is_some_and(|g| {
+                        gap_row == NO_CELL
+                            || column == NO_CELL
+                            || g.gap[g.grid.index(column, gap_row)]
+                    });
+                    *weight = if in_gap {
+                        gap_like * (-r2 * gap_inv).exp() + outlier
+                    } else {
+                        trust * (-r2 * inv).exp() + outlier
+                    };
+                }
+            },
+        );
+        self.gap = gap;
+        self.normalise(Some(total));
+        self.choose_mode();
+        self.reporting = true;
+    }
+
+    fn estimate(&self) -> Option<Estimate> {
+        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
+            return None;
+        }
+        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
+        let p = Point2::from(o + self.pdr);
+        (p.x.is_finite() && p.y.is_finite())
+            .then(|| Estimate::point(self.t, p, self.guard.diagnostics()))
+    }
+}

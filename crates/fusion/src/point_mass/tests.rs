@@ -1,0 +1,334 @@
+//! Tests of `pmf`.
+
+use super::*;
+use crate::Fuser;
+use crate::walkable::CellClass;
+use proptest::prelude::*;
+use wipdr_core::{FloorPlan, MotionState, Polygon, StepEvent, Unit, WifiObservation, angle};
+
+fn fix(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
+    WifiObservation {
+        t,
+        estimate: Point2::new(x, y),
+        candidates: vec![],
+        visited: 0,
+        floor: None,
+        building: None,
+    }
+}
+
+fn step(t: TimestampMs, heading: f64) -> StepEvent {
+    StepEvent {
+        t,
+        length: 0.7,
+        heading,
+        heading_change: 0.0,
+        period_s: 0.5,
+        motion: MotionState::default(),
+    }
+}
+
+fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon {
+    Polygon::rectangle(x0, y0, x1, y1).unwrap()
+}
+
+/// A 60 m x 40 m floor whose only walkable space is a 3 m wide ring corridor around
+/// one big unit.
+fn ring_plan() -> Arc<WalkableGrid> {
+    let plan = FloorPlan::new(
+        60.0,
+        40.0,
+        vec![rect(0.0, 0.0, 60.0, 40.0)],
+        vec![Unit {
+            name: "block".into(),
+            polygon: rect(3.0, 3.0, 57.0, 37.0),
+        }],
+    )
+    .unwrap();
+    Arc::new(WalkableGrid::new(&plan, 0.5).unwrap())
+}
+
+fn total(f: &PointMassFilter) -> f64 {
+    let (x0, x1, y0, y1) = f.active;
+    let n_active = (x1 - x0 + 1) * (y1 - y0 + 1);
+    let mut s = f.bg * (f.prob.len() - n_active) as f64;
+    for r in y0..=y1 {
+        for c in x0..=x1 {
+            s += f.prob[r * f.lattice.cols() + c];
+        }
+    }
+    s
+}
+
+#[test]
+fn walls_and_fixes_find_the_corridor() {
+    // Walk north along the left corridor (x = 1.5) from y = 5, then east along the top
+    // (y = 38.5). Fixes are 4 m off, one of them 40 m off.
+    let mut f =
+        PointMassFilter::new(PointMassConfig::default(), Some(ring_plan()), None, None).unwrap();
+    let mut truth = Point2::new(1.5, 5.0);
+    let mut t = 0;
+    f.on_wifi(&fix(t, truth.x + 4.0, truth.y));
+    for k in 0..90 {
+        t += 500;
+        let heading = if k < 48 {
+            0.0
+        } else {
+            std::f64::consts::FRAC_PI_2
+        };
+        truth += angle::step_displacement(0.7, heading);
+        f.on_step(&step(t, heading));
+        if k % 6 == 5 {
+            let gross = if k == 35 { 40.0 } else { 0.0 };
+            f.on_wifi(&fix(t, truth.x + 3.0, truth.y - 3.0 + gross));
+        }
+        assert!((total(&f) - 1.0).abs() < 1e-9);
+    }
+    let p = f.estimate().unwrap().position;
+    assert!((p - truth).norm() < 2.5, "estimate {p:?} truth {truth:?}");
+    assert!(f.walkable.as_ref().unwrap().class_at(p) == CellClass::Walkable);
+}
+
+#[test]
+fn trails_pull_the_placement_onto_where_training_walks_went() {
+    // No plan: one fix 4 m north of the truth, then a walk east along y = 0, where a
+    // training trail runs. Without trails the estimate stays near the fix's y; with the
+    // trail prior it moves onto the trail; with `trail_sd_m = 0` the prior is off.
+    let trail = [wipdr_core::Segment {
+        a: Point2::new(-50.0, 0.0),
+        b: Point2::new(50.0, 0.0),
+    }];
+    let raster = Arc::new(TrailRaster::new(&trail, 0.5, 10.0).unwrap());
+    let run = |cfg: PointMassConfig, trails: Option<Arc<TrailRaster>>| {
+        let mut f = PointMassFilter::new(cfg, None, None, None)
+            .unwrap()
+            .with_trails(trails);
+        f.on_wifi(&fix(0, 0.0, 4.0));
+        for k in 1..=30 {
+            f.on_step(&step(500 * k, std::f64::consts::FRAC_PI_2));
+            assert!((total(&f) - 1.0).abs() < 1e-9);
+        }
+        f.estimate().unwrap().position
+    };
+    let on = PointMassConfig {
+        trail_sd_m: 1.0,
+        off_trail_likelihood: 0.5,
+        ..PointMassConfig::default()
+    };
+    let without = run(on.clone(), None);
+    let with = run(on.clone(), Some(raster.clone()));
+    let off = run(
+        PointMassConfig {
+            trail_sd_m: 0.0,
+            ..on
+        },
+        Some(raster),
+    );
+    assert!(without.y > 3.0, "{without:?}");
+    assert!(with.y.abs() < 1.0, "{with:?}");
+    assert_eq!(off, without);
+    assert!((with.x - 21.0).abs() < 1.0, "{with:?}");
+}
+
+#[test]
+fn gap_raster_marks_cells_beyond_the_distance() {
+    let points = vec![Point2::new(10.0, 10.0), Point2::new(40.0, 10.0)];
+    let g = GapRaster::new(
+        &points,
+        1.0,
+        8.0,
+        (Point2::new(0.0, 0.0), Point2::new(60.0, 30.0)),
+    )
+    .unwrap();
+    for (x, y, gap) in [
+        (10.0, 10.0, false),
+        (16.0, 12.0, false),
+        (40.0, 17.0, false),
+        (25.0, 10.0, true),
+        (10.0, 25.0, true),
+        (-5.0, 10.0, true),
+    ] {
+        assert_eq!(g.is_gap(Point2::new(x, y)), gap, "({x}, {y})");
+    }
+    assert!(GapRaster::new(&[], 1.0, 8.0, (Point2::origin(), Point2::new(1.0, 1.0))).is_none());
+}
+
+/// An extent too large (1e20, 1e308 apart) or non-finite gives no gap raster, not a panic
+/// (the old `ceil() as usize + 1` overflowed, or wrapped to an empty raster in release).
+#[test]
+fn a_gap_raster_over_an_absurd_extent_is_none() {
+    let points = [Point2::new(1.0, 1.0)];
+    for (lo, hi) in [
+        (Point2::new(0.0, 0.0), Point2::new(1e20, 1.0)),
+        (Point2::new(0.0, -1e308), Point2::new(1.0, 1e308)),
+        (Point2::new(-f64::MAX, 0.0), Point2::new(f64::MAX, 1.0)),
+        (Point2::new(f64::NAN, 0.0), Point2::new(1.0, 1.0)),
+        (Point2::new(0.0, 0.0), Point2::new(f64::INFINITY, 1.0)),
+    ] {
+        assert!(
+            GapRaster::new(&points, 1.0, 8.0, (lo, hi)).is_none(),
+            "{lo:?} {hi:?}"
+        );
+    }
+    // Far reference points are simply outside a sane raster.
+    let far = [
+        Point2::new(1e20, 1.0),
+        Point2::new(f64::NAN, 1.0),
+        Point2::new(2.0, 2.0),
+    ];
+    let g = GapRaster::new(&far, 1.0, 3.0, (Point2::origin(), Point2::new(10.0, 10.0))).unwrap();
+    assert!(!g.is_gap(Point2::new(2.5, 2.5)) && g.is_gap(Point2::new(9.5, 9.5)));
+}
+
+#[test]
+fn a_given_start_is_kept_by_a_pdr_walk() {
+    let mut f = PointMassFilter::new(
+        PointMassConfig::default(),
+        None,
+        None,
+        Some(Point2::new(5.0, 5.0)),
+    )
+    .unwrap();
+    for k in 1..=10 {
+        f.on_step(&step(k * 500, 0.0));
+    }
+    let p = f.estimate().unwrap().position;
+    assert!((p - Point2::new(5.0, 12.0)).norm() < 1.0, "{p:?}");
+}
+
+#[test]
+fn invalid_configs_are_rejected() {
+    for cfg in [
+        PointMassConfig {
+            cell_m: 0.0,
+            ..Default::default()
+        },
+        PointMassConfig {
+            unit_likelihood: 0.0,
+            ..Default::default()
+        },
+        PointMassConfig {
+            wifi_outlier: f64::NAN,
+            ..Default::default()
+        },
+        PointMassConfig {
+            cell_m: 0.001,
+            ..Default::default()
+        },
+    ] {
+        let with_plan = PointMassFilter::new(cfg, Some(ring_plan()), None, None);
+        assert!(with_plan.is_err());
+    }
+}
+
+/// The mode as `choose_mode` chose it before it was split into rows and lanes: a
+/// summed-area table and a cell-by-cell scan with clipped squares (no hysteresis).
+fn mode_cell_by_cell(f: &PointMassFilter) -> usize {
+    let (x0, x1, y0, y1) = f.active;
+    let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
+    let mut sat = vec![0.0; (w + 1) * (h + 1)];
+    for r in 0..h {
+        let mut row = 0.0;
+        for c in 0..w {
+            row += f.prob[(y0 + r) * f.lattice.cols() + x0 + c];
+            sat[(r + 1) * (w + 1) + c + 1] = sat[r * (w + 1) + c + 1] + row;
+        }
+    }
+    let k = (f.cfg.mode_radius_m / f.cfg.cell_m).round() as usize;
+    let mut best = (0usize, 0usize, f64::NEG_INFINITY);
+    for r in 0..h {
+        for c in 0..w {
+            let (a0, a1) = (c.saturating_sub(k), (c + k).min(w - 1) + 1);
+            let (b0, b1) = (r.saturating_sub(k), (r + k).min(h - 1) + 1);
+            let m = sat[b1 * (w + 1) + a1] - sat[b0 * (w + 1) + a1] - sat[b1 * (w + 1) + a0]
+                + sat[b0 * (w + 1) + a0];
+            if m > best.2 {
+                best = (c, r, m);
+            }
+        }
+    }
+    (y0 + best.1) * f.lattice.cols() + x0 + best.0
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// The row-wise mode search picks the very cell of the cell-by-cell scan, for windows
+    /// narrower and wider than the mode's square, ties included (coarse values).
+    #[test]
+    fn mode_search_matches_the_cell_by_cell_scan(
+        (nx, ny, values) in (1usize..40, 1usize..30).prop_flat_map(|(nx, ny)| {
+            (Just(nx), Just(ny), proptest::collection::vec(0u8..6, nx * ny))
+        }),
+        window in (0.0f64..1.0, 0.0f64..1.0, 0.0f64..1.0, 0.0f64..1.0),
+        radius in 0usize..8,
+    ) {
+        let cfg = PointMassConfig { mode_radius_m: radius as f64, ..Default::default() };
+        let mut f = PointMassFilter::new(cfg, None, None, None).unwrap();
+        f.lattice = GridSpec::new(Point2::origin(), 1.0, nx, ny, usize::MAX).unwrap();
+        f.prob = values.iter().map(|&v| f64::from(v) / 7.0).collect();
+        let pick = |a: f64, b: f64, n: usize| {
+            let (a, b) = ((a * n as f64) as usize, (b * n as f64) as usize);
+            (a.min(b).min(n - 1), a.max(b).min(n - 1))
+        };
+        let ((x0, x1), (y0, y1)) = (pick(window.0, window.1, nx), pick(window.2, window.3, ny));
+        f.active = (x0, x1, y0, y1);
+        f.mode = None;
+        f.choose_mode();
+        prop_assert_eq!(f.mode, Some(mode_cell_by_cell(&f)));
+    }
+
+    /// Looking a point's raster row and column up separately finds the raster's own cell,
+    /// and both are the hand-written `floor((v - origin) / cell)` the filter used before the
+    /// grid type (so the lattice's look-ups kept their bits).
+    #[test]
+    fn split_lookups_match_the_raster(
+        points in proptest::collection::vec((-20.0f64..80.0, -20.0f64..60.0), 1..200),
+        shift in (-1.0f64..1.0, -1.0f64..1.0),
+    ) {
+        let walkable = ring_plan();
+        let grid = *walkable.grid();
+        let (lo, cell, (gnx, gny)) = (grid.origin(), grid.cell_m(), grid.dims());
+        let by_hand = |v: f64, origin: f64, n: usize| {
+            let c = ((v - origin) / cell).floor();
+            (c >= 0.0 && c < n as f64).then_some(c as usize)
+        };
+        let odd = [Point2::new(f64::NAN, 1.0), Point2::new(1.0, f64::INFINITY)];
+        let all = points.iter().map(|&(x, y)| Point2::new(x + shift.0, y + shift.1));
+        for p in all.chain(odd) {
+            let (column, row) = (grid.col_of(p.x), grid.row_of(p.y));
+            prop_assert_eq!(column, by_hand(p.x, lo.x, gnx));
+            prop_assert_eq!(row, by_hand(p.y, lo.y, gny));
+            let split = row.zip(column).map(|(r, c)| r * gnx + c);
+            prop_assert_eq!(split, walkable.cell_of(p), "{:?}", p);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Whatever the inputs (huge, far, out of the plan, into walls), the probabilities
+    /// stay a distribution and the estimate stays finite.
+    #[test]
+    fn probabilities_stay_a_distribution(
+        inputs in proptest::collection::vec((any::<bool>(), -1e4f64..1e4, -1e4f64..1e4, -10.0f64..10.0), 1..60),
+        with_plan in any::<bool>(),
+    ) {
+        let plan = with_plan.then(ring_plan);
+        let mut f = PointMassFilter::new(PointMassConfig::default(), plan, None, None).unwrap();
+        for (k, (is_fix, x, y, h)) in inputs.into_iter().enumerate() {
+            let t = k as TimestampMs * 300;
+            if is_fix {
+                f.on_wifi(&fix(t, x / 100.0, y / 100.0));
+            } else {
+                f.on_step(&step(t, h));
+            }
+            if f.initialised {
+                prop_assert!((total(&f) - 1.0).abs() < 1e-9, "total {}", total(&f));
+                prop_assert!(f.prob.iter().all(|v| v.is_finite() && *v >= 0.0));
+            }
+            if let Some(e) = f.estimate() {
+                prop_assert!(e.position.x.is_finite() && e.position.y.is_finite());
+            }
+        }
+    }
+}
