@@ -113,6 +113,17 @@ pub enum IoError {
         #[source]
         first: Box<IoError>,
     },
+    /// Two walk files of one walk id in a floor folder (`w.txt` and `w.txt.gz`): the later
+    /// one (by name) is not read.
+    #[error("{second}: walk id {id:?} is already read from {first}; file skipped", second = second.display(), first = first.display())]
+    DuplicateWalk {
+        /// The walk id.
+        id: String,
+        /// The file that was read.
+        first: PathBuf,
+        /// The file with the same id, skipped.
+        second: PathBuf,
+    },
     /// A value the writer refuses to write (e.g. a non-finite number).
     #[error("cannot write field {field}: {message}")]
     Unwritable {

@@ -239,6 +239,27 @@ pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
     Ok(files)
 }
 
+/// Splits walk files (sorted by name) into the first file of each walk id and the later
+/// files with an id already seen (`w.txt` and `w.txt.gz` are both walk `w`), each later
+/// file paired with the first one.
+fn split_duplicate_ids(files: &[PathBuf]) -> (Vec<PathBuf>, Vec<(PathBuf, PathBuf)>) {
+    let mut first_of: std::collections::HashMap<String, &PathBuf> = Default::default();
+    let mut unique = Vec::with_capacity(files.len());
+    let mut duplicates = Vec::new();
+    for f in files {
+        match first_of.entry(trace::walk_id_of(f)) {
+            std::collections::hash_map::Entry::Occupied(e) => {
+                duplicates.push((f.clone(), (*e.get()).clone()));
+            }
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(f);
+                unique.push(f.clone());
+            }
+        }
+    }
+    (unique, duplicates)
+}
+
 /// Reads a whole floor folder; the walks in parallel (rayon).
 ///
 /// A walk file that cannot be read is skipped: logged with `tracing::warn!` and kept in
@@ -247,6 +268,12 @@ pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
 /// be read ([`IoError::NoReadableWalk`]), and, with [`ReadOptions::strict`], on the first
 /// walk file (by name) that cannot be read. A folder without walk files reads as a floor
 /// with no walks.
+///
+/// Two files of one walk id (`w.txt` and `w.txt.gz`) are never both read, as the walk could
+/// then be a training and a test walk at once: the first by name (`w.txt`) is read, the
+/// later one is skipped into [`FloorData::skipped_walks`] with an
+/// [`IoError::DuplicateWalk`] naming both files (with [`ReadOptions::strict`], the read
+/// fails with that error).
 ///
 /// ```no_run
 /// use wipdr_io::floor::{read_floor_dir, ReadOptions};
@@ -280,7 +307,17 @@ pub fn read_floor_dir_with_progress(
     let limits = &options.limits;
     let (width, height) = read_floor_info(&info, limits)?;
     let plan_read = geojson::read_floor_plan(&map, width, height, limits)?;
-    let files = walk_files(dir)?;
+    let listed = walk_files(dir)?;
+    let (files, duplicates) = split_duplicate_ids(&listed);
+    if options.strict
+        && let Some((dup, first)) = duplicates.first()
+    {
+        return Err(IoError::DuplicateWalk {
+            id: trace::walk_id_of(dup),
+            first: first.clone(),
+            second: dup.clone(),
+        });
+    }
     let results: Vec<Result<ParsedWalk, IoError>> = files
         .par_iter()
         .map(|f| {
@@ -304,12 +341,23 @@ pub fn read_floor_dir_with_progress(
             }
         }
     }
+    for (dup, first) in &duplicates {
+        let e = IoError::DuplicateWalk {
+            id: trace::walk_id_of(dup),
+            first: first.clone(),
+            second: dup.clone(),
+        };
+        let skip = SkippedWalk::new(dup, &e);
+        tracing::warn!(file = %dup.display(), first = %first.display(), "walk file skipped: same walk id as an earlier file");
+        skipped_walks.push(skip);
+    }
+    skipped_walks.sort_by(|a, b| a.path.cmp(&b.path));
     if walks.is_empty()
         && let Some(first) = first_error
     {
         return Err(IoError::NoReadableWalk {
             path: dir.to_path_buf(),
-            files: files.len(),
+            files: listed.len(),
             first: Box::new(first),
         });
     }
@@ -468,6 +516,44 @@ mod tests {
         assert_eq!(data.walks.len(), 3);
         assert_eq!(data.skipped_walks.len(), 1);
         assert_eq!(data.skipped_walks[0].path, corrupt);
+    }
+
+    #[test]
+    fn a_walk_present_as_txt_and_txt_gz_is_read_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let floor = fixture_floor(dir.path(), &["a", "b"], 3);
+        // `a` again, plain text, with other waypoints: the same walk id.
+        let walks = floor.join(WALKS_DIR);
+        let plain = walks.join("a.txt");
+        std::fs::write(&plain, "5\tTYPE_WAYPOINT\t9\t9\n").unwrap();
+        let gz = walks.join("a.txt.gz");
+        let data = read_floor_dir(&floor, &ReadOptions::default()).unwrap();
+        let ids: Vec<_> = data.walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+        assert_eq!(ids, ["a", "b"], "one walk per id");
+        // The first by name (`a.txt`) is read, `a.txt.gz` is a counted skip naming both.
+        assert_eq!(data.walks[0].walk.waypoints.len(), 1);
+        assert_eq!(data.skipped_walks.len(), 1, "{:?}", data.skipped_walks);
+        let skip = &data.skipped_walks[0];
+        assert_eq!(skip.path, gz);
+        assert!(!skip.transient);
+        assert!(skip.error.contains("a.txt.gz"), "{}", skip.error);
+        assert!(
+            skip.error
+                .contains(&format!("already read from {}", plain.display())),
+            "{}",
+            skip.error
+        );
+        // Strict: a typed error naming both files.
+        let strict = ReadOptions {
+            strict: true,
+            ..ReadOptions::default()
+        };
+        match read_floor_dir(&floor, &strict).unwrap_err() {
+            IoError::DuplicateWalk { id, first, second } => {
+                assert_eq!((id.as_str(), first, second), ("a", plain, gz));
+            }
+            e => panic!("{e}"),
+        }
     }
 
     #[test]
