@@ -286,7 +286,9 @@ fn read_header(r: &mut impl Read, size: u64) -> Result<(u64, u64, u32), LoadFail
         )));
     }
     let (offset, len, table_crc) = (u64_at(12), u64_at(20), u32_at(28));
-    if len > MAX_TABLE_BYTES || offset.checked_add(len) != Some(size) || offset < HEADER_BYTES as u64
+    if len > MAX_TABLE_BYTES
+        || offset.checked_add(len) != Some(size)
+        || offset < HEADER_BYTES as u64
     {
         return Err(bad(format!(
             "table at {offset}+{len} does not end the {size}-byte file"
@@ -326,7 +328,14 @@ fn try_load(file: &Path, key: &CacheKey) -> Result<FloorData, LoadFail> {
     let mut r = std::io::BufReader::new(f);
     let (offset, len, table_crc) = read_header(&mut r, size)?;
     let table = read_at(file, offset, len)?;
-    let table = verified(table, Span { len, crc: table_crc }, "table")?;
+    let table = verified(
+        table,
+        Span {
+            len,
+            crc: table_crc,
+        },
+        "table",
+    )?;
     let (table, used): (Table, usize) = bincode::serde::decode_from_slice(&table, table_config())
         .map_err(|e| bad(format!("table: {e}")))?;
     if used as u64 != len {
@@ -1160,7 +1169,10 @@ mod tests {
         let removed = clear(&cache).unwrap();
         assert_eq!(removed.files.len(), 2);
         assert!(info(&cache).unwrap().files.is_empty());
-        assert_eq!(std::fs::read_to_string(cache.join("notes.txt")).unwrap(), "mine");
+        assert_eq!(
+            std::fs::read_to_string(cache.join("notes.txt")).unwrap(),
+            "mine"
+        );
         assert!(!info(tmp.path().join("nowhere")).unwrap().exists);
     }
 

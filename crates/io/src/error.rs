@@ -72,6 +72,18 @@ pub enum IoError {
         /// The limit.
         limit: usize,
     },
+    /// Input beyond one of the other [`crate::Limits`] (named by its field).
+    #[error("{path}: {what}: more than the limit Limits::{limit} = {max}; raise it (e.g. `wipdr inspect --limits FILE.toml`) if the input is genuine", path = path.display())]
+    LimitExceeded {
+        /// The file.
+        path: PathBuf,
+        /// Where in the file (e.g. `line 12`), or what was counted.
+        what: String,
+        /// The [`crate::Limits`] field.
+        limit: &'static str,
+        /// Its value.
+        max: u64,
+    },
     /// A JSON file that is not valid JSON.
     #[error("{path}: invalid JSON", path = path.display())]
     JsonSyntax {

@@ -111,10 +111,44 @@ pub fn floor_name(dir: &Path) -> String {
     }
 }
 
+/// Smallest floor side accepted in `floor_info.json`, metres.
+pub const MIN_FLOOR_SIDE_M: f64 = 0.1;
+/// Largest floor side accepted in `floor_info.json`, metres (100 km).
+pub const MAX_FLOOR_SIDE_M: f64 = 100_000.0;
+/// How far outside `[0, width] x [0, height]` a waypoint may lie before it is skipped as
+/// [`trace::SkipKind::WaypointOffFloor`]: 10 m plus half the larger floor side (surveyed
+/// waypoints sit on the floor; the margin only allows for a plan not quite covering it).
+pub const OFF_FLOOR_MARGIN_M: f64 = 10.0;
+
+/// Skips the waypoints of `walk` lying off a floor of `width` x `height` metres (see
+/// [`OFF_FLOOR_MARGIN_M`]), counting them in its report; returns how many.
+fn skip_off_floor_waypoints(walk: &mut ParsedWalk, width: f64, height: f64) -> usize {
+    let m = OFF_FLOOR_MARGIN_M + 0.5 * width.max(height);
+    let on = |p: &wipdr_core::Point2| {
+        (-m..=width + m).contains(&p.x) && (-m..=height + m).contains(&p.y)
+    };
+    let before = walk.walk.waypoints.len();
+    walk.walk.waypoints.retain(|w| on(&w.position));
+    let off = before - walk.walk.waypoints.len();
+    if off > 0 {
+        tracing::warn!(walk = %walk.walk.meta.id, off, width, height, "waypoints off the floor skipped");
+        walk.report
+            .skipped
+            .entry(trace::SkipKind::WaypointOffFloor)
+            .or_default()
+            .count += off;
+        if let Some(c) = walk.report.records.get_mut("TYPE_WAYPOINT") {
+            *c = c.saturating_sub(off);
+        }
+    }
+    off
+}
+
 /// Reads `floor_info.json`: `(width, height)` in metres from `map_info`.
 pub fn read_floor_info(path: impl AsRef<Path>, limits: &Limits) -> Result<(f64, f64), IoError> {
     let path = path.as_ref();
-    let value = geojson::read_json_bounded(path, limits.max_json_bytes)?;
+    let value =
+        geojson::read_json_bounded(path, limits.max_json_bytes, Some(limits.max_json_values))?;
     let get = |key: &str| -> Result<f64, IoError> {
         let field = format!("map_info.{key}");
         let v = value
@@ -122,11 +156,13 @@ pub fn read_floor_info(path: impl AsRef<Path>, limits: &Limits) -> Result<(f64, 
             .and_then(|m| m.get(key))
             .ok_or_else(|| IoError::invalid(path, &field, "missing"))?;
         match v.as_f64() {
-            Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+            Some(x) if (MIN_FLOOR_SIDE_M..=MAX_FLOOR_SIDE_M).contains(&x) => Ok(x),
             _ => Err(IoError::invalid(
                 path,
                 &field,
-                format!("expected a positive number, found {v}"),
+                format!(
+                    "expected a floor side between {MIN_FLOOR_SIDE_M} and {MAX_FLOOR_SIDE_M} m, found {v}"
+                ),
             )),
         }
     };
@@ -331,7 +367,10 @@ pub fn read_floor_dir_with_progress(
     let mut first_error = None;
     for (file, result) in files.iter().zip(results) {
         match result {
-            Ok(walk) => walks.push(walk),
+            Ok(mut walk) => {
+                skip_off_floor_waypoints(&mut walk, width, height);
+                walks.push(walk);
+            }
             Err(e) if options.strict => return Err(e),
             Err(e) => {
                 let skip = SkippedWalk::new(file, &e);
