@@ -1045,16 +1045,15 @@ mod tests {
         assert!(bytes.len() > 400, "{}", bytes.len());
         for at in 0..bytes.len() {
             // Every byte, its low bit or its high bit.
-            for mask in [if at % 2 == 0 { 0x01u8 } else { 0x80 }] {
-                let mut bad = bytes.clone();
-                bad[at] ^= mask;
-                std::fs::write(&file, &bad).unwrap();
-                let (f, o) = read_floor_dir_cached_with(&dir, &cache, &opts, &|| {}).unwrap();
-                assert_eq!(o, CacheOutcome::Rebuilt, "byte {at} ^ {mask:#x}");
-                assert_eq!(f, good, "byte {at}");
-                // Rebuilt identically.
-                assert_eq!(std::fs::read(&file).unwrap(), bytes, "byte {at}");
-            }
+            let mask = if at % 2 == 0 { 0x01u8 } else { 0x80 };
+            let mut bad = bytes.clone();
+            bad[at] ^= mask;
+            std::fs::write(&file, &bad).unwrap();
+            let (f, o) = read_floor_dir_cached_with(&dir, &cache, &opts, &|| {}).unwrap();
+            assert_eq!(o, CacheOutcome::Rebuilt, "byte {at} ^ {mask:#x}");
+            assert_eq!(f, good, "byte {at}");
+            // Rebuilt identically.
+            assert_eq!(std::fs::read(&file).unwrap(), bytes, "byte {at}");
         }
         // Truncated anywhere, or padded.
         for n in (0..bytes.len()).step_by(7) {
