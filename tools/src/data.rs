@@ -4,8 +4,9 @@ use crate::progress;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::OnceLock;
 use wipdr_eval::pipeline::FloorInput;
-use wipdr_io::cache::{self, CacheOutcome};
+use wipdr_io::cache::{self, CacheOutcome, CacheSettings};
 use wipdr_io::floor::{FloorData, ReadOptions};
 
 /// A short label for a floor folder: its parent's name and its own (`site1/F1`).
@@ -35,22 +36,98 @@ pub fn skipped_walks_note(floor: &FloorData) -> Option<String> {
     ))
 }
 
-/// Reads floor folders through the binary cache (`target/wipdr-cache`), with a progress bar
-/// over the walks read from source.
+/// The parse cache chosen on the command line (set once by `main`).
+static CACHE: OnceLock<CacheSettings> = OnceLock::new();
+
+/// The environment variable that moves the parse cache (`--cache-dir` wins).
+pub const CACHE_DIR_ENV: &str = "WIPDR_CACHE_DIR";
+/// The environment variable with the cache's size cap in MiB (`--cache-max-mb` wins).
+pub const CACHE_MAX_MB_ENV: &str = "WIPDR_CACHE_MAX_MB";
+
+/// The cache settings from the command line and the environment: `--cache-dir`, else
+/// `$WIPDR_CACHE_DIR`, else [`cache::DEFAULT_CACHE_DIR`]; `--no-cache` turns it off;
+/// `--cache-max-mb`, else `$WIPDR_CACHE_MAX_MB`, else 2048 MiB.
+pub fn resolve_cache(
+    dir: Option<PathBuf>,
+    no_cache: bool,
+    max_mb: Option<u64>,
+) -> Result<CacheSettings> {
+    let env = |name: &str| std::env::var_os(name).filter(|v| !v.is_empty());
+    let dir = dir
+        .or_else(|| env(CACHE_DIR_ENV).map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from(cache::DEFAULT_CACHE_DIR));
+    let max_mb = match max_mb {
+        Some(mb) => Some(mb),
+        None => match env(CACHE_MAX_MB_ENV) {
+            Some(v) => Some(v.to_string_lossy().trim().parse::<u64>().with_context(|| {
+                format!("{CACHE_MAX_MB_ENV}={v:?}: expected a whole number of MiB")
+            })?),
+            None => None,
+        },
+    };
+    let max_bytes = match max_mb {
+        Some(mb) => mb
+            .checked_mul(1024 * 1024)
+            .with_context(|| format!("cache size cap of {mb} MiB is too large"))?,
+        None => cache::DEFAULT_MAX_BYTES,
+    };
+    Ok(CacheSettings {
+        dir,
+        enabled: !no_cache,
+        max_bytes,
+    })
+}
+
+/// Sets the cache settings for this run (first call wins).
+pub fn set_cache(settings: CacheSettings) {
+    let _ = CACHE.set(settings);
+}
+
+/// The cache settings of this run (the defaults when `main` set none, e.g. in tests).
+pub fn cache_settings() -> CacheSettings {
+    CACHE.get().cloned().unwrap_or_default()
+}
+
+/// Makes a write to a closed stdout (`wipdr inspect F | head -1`) end the program quietly
+/// with exit code 0 instead of a panic: `println!` panics on a broken pipe, and this panic
+/// hook exits before the panic message is printed. Every other panic is reported as before.
+pub fn exit_quietly_on_broken_pipe() {
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(0);
+        }
+        default_hook(info);
+    }));
+}
+
+/// Whether an error comes from writing to a closed pipe.
+pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Reads floor folders through the parse cache of this run ([`cache_settings`]), with a
+/// progress bar over the walks read from source.
 pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
+    let settings = cache_settings();
     let mut out = Vec::with_capacity(dirs.len());
     for dir in dirs {
         let n = wipdr_io::floor::walk_files(dir)
             .map(|f| f.len() as u64)
             .unwrap_or(0);
         let pb = progress::bar(n, &floor_label(dir));
-        let (data, outcome) = cache::read_floor_dir_cached_with(
-            dir,
-            cache::DEFAULT_CACHE_DIR,
-            &ReadOptions::default(),
-            &|| pb.inc(1),
-        )
-        .with_context(|| format!("reading floor {}", dir.display()))?;
+        let (data, outcome) =
+            cache::read_floor(dir, &settings, &ReadOptions::default(), &|| pb.inc(1))
+                .with_context(|| format!("reading floor {}", dir.display()))?;
         pb.finish_and_clear();
         if let Some(note) = skipped_walks_note(&data) {
             eprintln!("{note}");

@@ -5,6 +5,7 @@
 //! function. Only this program prints and installs a `tracing` subscriber; the libraries log.
 
 use clap::{Parser, Subcommand};
+use std::path::PathBuf;
 use tracing_subscriber::EnvFilter;
 
 mod cmd;
@@ -20,6 +21,16 @@ struct Cli {
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
+    /// Cache folder for parsed floors (default: $WIPDR_CACHE_DIR, else target/wipdr-cache).
+    #[arg(long, global = true, value_name = "DIR")]
+    cache_dir: Option<PathBuf>,
+    /// Read floors from source, bypassing (and not writing) the parse cache.
+    #[arg(long, global = true)]
+    no_cache: bool,
+    /// Size cap of the parse cache, MiB (default: $WIPDR_CACHE_MAX_MB, else 2048); the least
+    /// recently used cache files beyond it are removed.
+    #[arg(long, global = true, value_name = "MIB")]
+    cache_max_mb: Option<u64>,
     /// The subcommand.
     #[command(subcommand)]
     command: Command,
@@ -51,9 +62,12 @@ enum Command {
     Sweep(cmd::sweep::Args),
     /// Wi-Fi refresh and loss rates against RSSI, with the RR model fit (paper 002 §3.1).
     WifiStats(cmd::wifi_stats::Args),
+    /// The parse cache: `wipdr cache info` (location, files, size) or `wipdr cache clear`.
+    Cache(cmd::cache::Args),
 }
 
 fn main() -> std::process::ExitCode {
+    data::exit_quietly_on_broken_pipe();
     let cli = Cli::parse();
     let level = match cli.verbose {
         0 => "warn",
@@ -66,6 +80,13 @@ fn main() -> std::process::ExitCode {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .init();
+    match data::resolve_cache(cli.cache_dir, cli.no_cache, cli.cache_max_mb) {
+        Ok(settings) => data::set_cache(settings),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return std::process::ExitCode::FAILURE;
+        }
+    }
     let result = match cli.command {
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
@@ -79,9 +100,12 @@ fn main() -> std::process::ExitCode {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::WifiStats(a) => cmd::wifi_stats::run(a),
+        Command::Cache(a) => cmd::cache::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // The reader of our output went away (`wipdr inspect F | head -1`): not an error.
+        Err(e) if data::is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

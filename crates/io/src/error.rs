@@ -72,6 +72,18 @@ pub enum IoError {
         /// The limit.
         limit: usize,
     },
+    /// Input beyond one of the other [`crate::Limits`] (named by its field).
+    #[error("{path}: {what}: more than the limit Limits::{limit} = {max}; raise it (e.g. `wipdr inspect --limits FILE.toml`) if the input is genuine", path = path.display())]
+    LimitExceeded {
+        /// The file.
+        path: PathBuf,
+        /// Where in the file (e.g. `line 12`), or what was counted.
+        what: String,
+        /// The [`crate::Limits`] field.
+        limit: &'static str,
+        /// Its value.
+        max: u64,
+    },
     /// A JSON file that is not valid JSON.
     #[error("{path}: invalid JSON", path = path.display())]
     JsonSyntax {
@@ -112,6 +124,17 @@ pub enum IoError {
         /// The error of the first walk file (by name).
         #[source]
         first: Box<IoError>,
+    },
+    /// Two walk files of one walk id in a floor folder (`w.txt` and `w.txt.gz`): the later
+    /// one (by name) is not read.
+    #[error("{second}: walk id {id:?} is already read from {first}; file skipped", second = second.display(), first = first.display())]
+    DuplicateWalk {
+        /// The walk id.
+        id: String,
+        /// The file that was read.
+        first: PathBuf,
+        /// The file with the same id, skipped.
+        second: PathBuf,
     },
     /// A value the writer refuses to write (e.g. a non-finite number).
     #[error("cannot write field {field}: {message}")]

@@ -27,6 +27,8 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 pub use wipdr_core::fingerprint_table::{FingerprintLabel, FingerprintTable, RowLengthError};
 
+use crate::Limits;
+
 /// The RSS value that means "access point not detected" in the benchmark files. The reader
 /// keeps it as is: it is also the in-memory marker [`FingerprintTable::NOT_HEARD`].
 pub const NOT_DETECTED: f32 = FingerprintTable::NOT_HEARD;
@@ -103,6 +105,22 @@ pub enum FingerprintCsvError {
         /// The offending value.
         value: f64,
     },
+    /// Input beyond one of the CSV [`crate::Limits`] (named by its field).
+    #[error(
+        "{path}: line {line}: {what}: more than the limit Limits::{limit} = {max}; raise it if the file is genuine"
+    )]
+    LimitExceeded {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number where the limit was crossed.
+        line: usize,
+        /// What was counted.
+        what: String,
+        /// The [`crate::Limits`] field.
+        limit: &'static str,
+        /// Its value.
+        max: u64,
+    },
     /// A table whose parts disagree in size (writer side).
     #[error("inconsistent table: {0}")]
     Inconsistent(String),
@@ -114,16 +132,26 @@ impl From<RowLengthError> for FingerprintCsvError {
     }
 }
 
-/// Reads a benchmark CSV file.
+/// Reads a benchmark CSV file with the default [`Limits`].
 pub fn read_fingerprint_csv(
     path: impl AsRef<Path>,
+) -> Result<FingerprintTable, FingerprintCsvError> {
+    read_fingerprint_csv_with(path, &Limits::default())
+}
+
+/// Reads a benchmark CSV file within `limits` ([`Limits::max_csv_bytes`],
+/// [`Limits::max_csv_line_bytes`], [`Limits::max_csv_columns`], [`Limits::max_csv_cells`]),
+/// streaming line by line: memory stays within a line plus the table.
+pub fn read_fingerprint_csv_with(
+    path: impl AsRef<Path>,
+    limits: &Limits,
 ) -> Result<FingerprintTable, FingerprintCsvError> {
     let path = path.as_ref();
     let file = std::fs::File::open(path).map_err(|source| FingerprintCsvError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    read_impl(BufReader::with_capacity(1 << 20, file), path)
+    read_impl(BufReader::with_capacity(1 << 20, file), path, limits)
 }
 
 /// Reads a benchmark CSV from any reader; `name` stands for the file in error messages.
@@ -131,7 +159,56 @@ pub fn read_fingerprint_csv_from<R: BufRead>(
     reader: R,
     name: &str,
 ) -> Result<FingerprintTable, FingerprintCsvError> {
-    read_impl(reader, Path::new(name))
+    read_impl(reader, Path::new(name), &Limits::default())
+}
+
+/// [`read_fingerprint_csv_from`] within `limits`.
+pub fn read_fingerprint_csv_from_with<R: BufRead>(
+    reader: R,
+    name: &str,
+    limits: &Limits,
+) -> Result<FingerprintTable, FingerprintCsvError> {
+    read_impl(reader, Path::new(name), limits)
+}
+
+/// Reads one line (with its `\n`, if any) into `line`, refusing to buffer more than `max`
+/// bytes; counts the bytes consumed. `Ok(false)` at the end of the input.
+fn read_line_limited<R: BufRead>(
+    reader: &mut R,
+    line: &mut String,
+    max: usize,
+    consumed: &mut u64,
+) -> std::io::Result<Result<bool, ()>> {
+    let mut bytes = std::mem::take(line).into_bytes();
+    bytes.clear();
+    loop {
+        let available = match reader.fill_buf() {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if available.is_empty() {
+            break;
+        }
+        let (take, done) = match available.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (available.len(), false),
+        };
+        if bytes.len() + take > max.saturating_add(1) {
+            reader.consume(take);
+            return Ok(Err(()));
+        }
+        bytes.extend_from_slice(&available[..take]);
+        reader.consume(take);
+        *consumed += take as u64;
+        if done {
+            break;
+        }
+    }
+    let any = !bytes.is_empty();
+    *line = String::from_utf8(bytes)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()))?;
+    Ok(Ok(any))
 }
 
 /// Reads `DIR/train.csv` (the radio map) and `DIR/test.csv` (the queries) of one benchmark.
@@ -153,16 +230,57 @@ pub fn read_dataset(
 fn read_impl<R: BufRead>(
     mut reader: R,
     path: &Path,
+    limits: &Limits,
 ) -> Result<FingerprintTable, FingerprintCsvError> {
     let io_err = |source| FingerprintCsvError::Io {
         path: path.to_path_buf(),
         source,
     };
+    let over = |line: usize, what: String, limit: &'static str, max: u64| {
+        FingerprintCsvError::LimitExceeded {
+            path: path.to_path_buf(),
+            line,
+            what,
+            limit,
+            max,
+        }
+    };
+    let mut consumed = 0u64;
+    let mut next_line = |line: &mut String, lineno: usize| -> Result<bool, FingerprintCsvError> {
+        let got = read_line_limited(&mut reader, line, limits.max_csv_line_bytes, &mut consumed)
+            .map_err(io_err)?
+            .map_err(|()| {
+                over(
+                    lineno,
+                    "line length".into(),
+                    "max_csv_line_bytes",
+                    limits.max_csv_line_bytes as u64,
+                )
+            })?;
+        if consumed > limits.max_csv_bytes {
+            return Err(over(
+                lineno,
+                "file size".into(),
+                "max_csv_bytes",
+                limits.max_csv_bytes,
+            ));
+        }
+        Ok(got)
+    };
     let mut line = String::new();
-    if reader.read_line(&mut line).map_err(io_err)? == 0 {
+    if !next_line(&mut line, 1)? {
         return Err(FingerprintCsvError::Empty {
             path: path.to_path_buf(),
         });
+    }
+    let columns = line.bytes().filter(|&b| b == b',').count() + 1;
+    if columns > limits.max_csv_columns {
+        return Err(over(
+            1,
+            format!("{columns} header columns"),
+            "max_csv_columns",
+            limits.max_csv_columns as u64,
+        ));
     }
     let header: Vec<String> = line
         .trim_end_matches(['\n', '\r'])
@@ -197,8 +315,7 @@ fn read_impl<R: BufRead>(
     let mut lineno = 1usize;
     let mut row = vec![0f32; n_aps];
     loop {
-        line.clear();
-        if reader.read_line(&mut line).map_err(io_err)? == 0 {
+        if !next_line(&mut line, lineno + 1)? {
             break;
         }
         lineno += 1;
@@ -249,6 +366,14 @@ fn read_impl<R: BufRead>(
                 }
                 label[k] = v;
             }
+        }
+        if (table.rss.len() + n_aps) as u64 > limits.max_csv_cells {
+            return Err(over(
+                lineno,
+                format!("{} rows of {n_aps} APs", table.n_rows() + 1),
+                "max_csv_cells",
+                limits.max_csv_cells,
+            ));
         }
         table.rss.extend_from_slice(&row);
         table.labels.push(FingerprintLabel {

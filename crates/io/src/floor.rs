@@ -111,10 +111,44 @@ pub fn floor_name(dir: &Path) -> String {
     }
 }
 
+/// Smallest floor side accepted in `floor_info.json`, metres.
+pub const MIN_FLOOR_SIDE_M: f64 = 0.1;
+/// Largest floor side accepted in `floor_info.json`, metres (100 km).
+pub const MAX_FLOOR_SIDE_M: f64 = 100_000.0;
+/// How far outside `[0, width] x [0, height]` a waypoint may lie before it is skipped as
+/// [`trace::SkipKind::WaypointOffFloor`]: 10 m plus half the larger floor side (surveyed
+/// waypoints sit on the floor; the margin only allows for a plan not quite covering it).
+pub const OFF_FLOOR_MARGIN_M: f64 = 10.0;
+
+/// Skips the waypoints of `walk` lying off a floor of `width` x `height` metres (see
+/// [`OFF_FLOOR_MARGIN_M`]), counting them in its report; returns how many.
+fn skip_off_floor_waypoints(walk: &mut ParsedWalk, width: f64, height: f64) -> usize {
+    let m = OFF_FLOOR_MARGIN_M + 0.5 * width.max(height);
+    let on = |p: &wipdr_core::Point2| {
+        (-m..=width + m).contains(&p.x) && (-m..=height + m).contains(&p.y)
+    };
+    let before = walk.walk.waypoints.len();
+    walk.walk.waypoints.retain(|w| on(&w.position));
+    let off = before - walk.walk.waypoints.len();
+    if off > 0 {
+        tracing::warn!(walk = %walk.walk.meta.id, off, width, height, "waypoints off the floor skipped");
+        walk.report
+            .skipped
+            .entry(trace::SkipKind::WaypointOffFloor)
+            .or_default()
+            .count += off;
+        if let Some(c) = walk.report.records.get_mut("TYPE_WAYPOINT") {
+            *c = c.saturating_sub(off);
+        }
+    }
+    off
+}
+
 /// Reads `floor_info.json`: `(width, height)` in metres from `map_info`.
 pub fn read_floor_info(path: impl AsRef<Path>, limits: &Limits) -> Result<(f64, f64), IoError> {
     let path = path.as_ref();
-    let value = geojson::read_json_bounded(path, limits.max_json_bytes)?;
+    let value =
+        geojson::read_json_bounded(path, limits.max_json_bytes, Some(limits.max_json_values))?;
     let get = |key: &str| -> Result<f64, IoError> {
         let field = format!("map_info.{key}");
         let v = value
@@ -122,11 +156,13 @@ pub fn read_floor_info(path: impl AsRef<Path>, limits: &Limits) -> Result<(f64, 
             .and_then(|m| m.get(key))
             .ok_or_else(|| IoError::invalid(path, &field, "missing"))?;
         match v.as_f64() {
-            Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+            Some(x) if (MIN_FLOOR_SIDE_M..=MAX_FLOOR_SIDE_M).contains(&x) => Ok(x),
             _ => Err(IoError::invalid(
                 path,
                 &field,
-                format!("expected a positive number, found {v}"),
+                format!(
+                    "expected a floor side between {MIN_FLOOR_SIDE_M} and {MAX_FLOOR_SIDE_M} m, found {v}"
+                ),
             )),
         }
     };
@@ -239,6 +275,27 @@ pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
     Ok(files)
 }
 
+/// Splits walk files (sorted by name) into the first file of each walk id and the later
+/// files with an id already seen (`w.txt` and `w.txt.gz` are both walk `w`), each later
+/// file paired with the first one.
+fn split_duplicate_ids(files: &[PathBuf]) -> (Vec<PathBuf>, Vec<(PathBuf, PathBuf)>) {
+    let mut first_of: std::collections::HashMap<String, &PathBuf> = Default::default();
+    let mut unique = Vec::with_capacity(files.len());
+    let mut duplicates = Vec::new();
+    for f in files {
+        match first_of.entry(trace::walk_id_of(f)) {
+            std::collections::hash_map::Entry::Occupied(e) => {
+                duplicates.push((f.clone(), (*e.get()).clone()));
+            }
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(f);
+                unique.push(f.clone());
+            }
+        }
+    }
+    (unique, duplicates)
+}
+
 /// Reads a whole floor folder; the walks in parallel (rayon).
 ///
 /// A walk file that cannot be read is skipped: logged with `tracing::warn!` and kept in
@@ -247,6 +304,12 @@ pub fn walk_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, IoError> {
 /// be read ([`IoError::NoReadableWalk`]), and, with [`ReadOptions::strict`], on the first
 /// walk file (by name) that cannot be read. A folder without walk files reads as a floor
 /// with no walks.
+///
+/// Two files of one walk id (`w.txt` and `w.txt.gz`) are never both read, as the walk could
+/// then be a training and a test walk at once: the first by name (`w.txt`) is read, the
+/// later one is skipped into [`FloorData::skipped_walks`] with an
+/// [`IoError::DuplicateWalk`] naming both files (with [`ReadOptions::strict`], the read
+/// fails with that error).
 ///
 /// ```no_run
 /// use wipdr_io::floor::{read_floor_dir, ReadOptions};
@@ -280,7 +343,17 @@ pub fn read_floor_dir_with_progress(
     let limits = &options.limits;
     let (width, height) = read_floor_info(&info, limits)?;
     let plan_read = geojson::read_floor_plan(&map, width, height, limits)?;
-    let files = walk_files(dir)?;
+    let listed = walk_files(dir)?;
+    let (files, duplicates) = split_duplicate_ids(&listed);
+    if options.strict
+        && let Some((dup, first)) = duplicates.first()
+    {
+        return Err(IoError::DuplicateWalk {
+            id: trace::walk_id_of(dup),
+            first: first.clone(),
+            second: dup.clone(),
+        });
+    }
     let results: Vec<Result<ParsedWalk, IoError>> = files
         .par_iter()
         .map(|f| {
@@ -294,7 +367,10 @@ pub fn read_floor_dir_with_progress(
     let mut first_error = None;
     for (file, result) in files.iter().zip(results) {
         match result {
-            Ok(walk) => walks.push(walk),
+            Ok(mut walk) => {
+                skip_off_floor_waypoints(&mut walk, width, height);
+                walks.push(walk);
+            }
             Err(e) if options.strict => return Err(e),
             Err(e) => {
                 let skip = SkippedWalk::new(file, &e);
@@ -304,12 +380,23 @@ pub fn read_floor_dir_with_progress(
             }
         }
     }
+    for (dup, first) in &duplicates {
+        let e = IoError::DuplicateWalk {
+            id: trace::walk_id_of(dup),
+            first: first.clone(),
+            second: dup.clone(),
+        };
+        let skip = SkippedWalk::new(dup, &e);
+        tracing::warn!(file = %dup.display(), first = %first.display(), "walk file skipped: same walk id as an earlier file");
+        skipped_walks.push(skip);
+    }
+    skipped_walks.sort_by(|a, b| a.path.cmp(&b.path));
     if walks.is_empty()
         && let Some(first) = first_error
     {
         return Err(IoError::NoReadableWalk {
             path: dir.to_path_buf(),
-            files: files.len(),
+            files: listed.len(),
             first: Box::new(first),
         });
     }
@@ -468,6 +555,44 @@ mod tests {
         assert_eq!(data.walks.len(), 3);
         assert_eq!(data.skipped_walks.len(), 1);
         assert_eq!(data.skipped_walks[0].path, corrupt);
+    }
+
+    #[test]
+    fn a_walk_present_as_txt_and_txt_gz_is_read_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let floor = fixture_floor(dir.path(), &["a", "b"], 3);
+        // `a` again, plain text, with other waypoints: the same walk id.
+        let walks = floor.join(WALKS_DIR);
+        let plain = walks.join("a.txt");
+        std::fs::write(&plain, "5\tTYPE_WAYPOINT\t9\t9\n").unwrap();
+        let gz = walks.join("a.txt.gz");
+        let data = read_floor_dir(&floor, &ReadOptions::default()).unwrap();
+        let ids: Vec<_> = data.walks.iter().map(|w| w.walk.meta.id.as_str()).collect();
+        assert_eq!(ids, ["a", "b"], "one walk per id");
+        // The first by name (`a.txt`) is read, `a.txt.gz` is a counted skip naming both.
+        assert_eq!(data.walks[0].walk.waypoints.len(), 1);
+        assert_eq!(data.skipped_walks.len(), 1, "{:?}", data.skipped_walks);
+        let skip = &data.skipped_walks[0];
+        assert_eq!(skip.path, gz);
+        assert!(!skip.transient);
+        assert!(skip.error.contains("a.txt.gz"), "{}", skip.error);
+        assert!(
+            skip.error
+                .contains(&format!("already read from {}", plain.display())),
+            "{}",
+            skip.error
+        );
+        // Strict: a typed error naming both files.
+        let strict = ReadOptions {
+            strict: true,
+            ..ReadOptions::default()
+        };
+        match read_floor_dir(&floor, &strict).unwrap_err() {
+            IoError::DuplicateWalk { id, first, second } => {
+                assert_eq!((id.as_str(), first, second), ("a", plain, gz));
+            }
+            e => panic!("{e}"),
+        }
     }
 
     #[test]

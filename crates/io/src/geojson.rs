@@ -62,8 +62,40 @@ pub struct PlanRead {
     pub skipped_features: usize,
 }
 
-/// Reads a JSON file of at most `limit` bytes.
-pub(crate) fn read_json_bounded(path: &Path, limit: u64) -> Result<Value, IoError> {
+/// An upper bound of the number of values in a JSON text, counted without parsing: every
+/// value but the first follows a `,` or opens right after a `[` / `{` / `:`, so commas plus
+/// opening brackets plus colons plus one bounds it (bytes inside strings are skipped).
+pub(crate) fn count_json_values(text: &[u8]) -> u64 {
+    let mut n = 1u64;
+    let mut in_string = false;
+    let mut escaped = false;
+    for &b in text {
+        if in_string {
+            if escaped {
+                escaped = false;
+            } else if b == b'\\' {
+                escaped = true;
+            } else if b == b'"' {
+                in_string = false;
+            }
+        } else {
+            match b {
+                b'"' => in_string = true,
+                b',' | b'[' | b'{' | b':' => n += 1,
+                _ => {}
+            }
+        }
+    }
+    n
+}
+
+/// Reads a JSON file of at most `limit` bytes and, when `max_values` is given, at most that
+/// many values (counted before the parse builds its tree).
+pub(crate) fn read_json_bounded(
+    path: &Path,
+    limit: u64,
+    max_values: Option<u64>,
+) -> Result<Value, IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::file(path, e))?;
     let mut text = Vec::new();
     file.take(limit.saturating_add(1))
@@ -74,6 +106,17 @@ pub(crate) fn read_json_bounded(path: &Path, limit: u64) -> Result<Value, IoErro
             path: path.to_path_buf(),
             limit,
         });
+    }
+    if let Some(max) = max_values {
+        let values = count_json_values(&text);
+        if values > max {
+            return Err(IoError::LimitExceeded {
+                path: path.to_path_buf(),
+                what: format!("about {values} JSON values"),
+                limit: "max_json_values",
+                max,
+            });
+        }
     }
     serde_json::from_slice(&text).map_err(|source| IoError::JsonSyntax {
         path: path.to_path_buf(),
@@ -89,7 +132,7 @@ pub fn read_floor_plan(
     limits: &Limits,
 ) -> Result<PlanRead, IoError> {
     let path = path.as_ref();
-    let value = read_json_bounded(path, limits.max_json_bytes)?;
+    let value = read_json_bounded(path, limits.max_json_bytes, Some(limits.max_json_values))?;
     plan_from_geojson(&value, path, width, height, limits)
 }
 
@@ -266,12 +309,21 @@ pub fn plan_from_geojson(
                 (h.len() >= 3).then_some(h)
             })
             .collect();
+        // Zero area (collinear or repeated vertices): nothing to be inside of.
+        let min_area = 1e-9 * width * height;
+        if ring_area(&exterior).abs() <= min_area {
+            return None;
+        }
         Polygon::new(exterior, holes).ok()
     };
     let mut skipped = 0usize;
     let mut outline = Vec::new();
     for (i, rings) in outline_polys.iter().enumerate() {
         match to_polygon(rings) {
+            Some(p) if self_intersects(&p.exterior) => {
+                skipped += 1;
+                tracing::warn!(file = %path.display(), part = i, "self-intersecting outline polygon skipped");
+            }
             Some(p) => outline.push(p),
             None => {
                 skipped += 1;
@@ -323,6 +375,61 @@ pub fn plan_from_geojson(
         lonlat_box: bbox,
         skipped_features: skipped,
     })
+}
+
+/// Signed area of a ring (shoelace), square metres.
+fn ring_area(ring: &[Point2]) -> f64 {
+    let n = ring.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (ring[i], ring[(i + 1) % n]);
+            a.x * b.y - b.x * a.y
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
+/// Most ring vertices checked for self-intersection (the check is quadratic); longer rings
+/// are taken as they are (logged at debug).
+pub const MAX_SELF_INTERSECTION_CHECK: usize = 4096;
+
+/// Whether two edges of the closed ring cross (adjacent edges sharing their vertex do not
+/// count).
+fn self_intersects(ring: &[Point2]) -> bool {
+    let n = ring.len();
+    if n < 4 {
+        return false;
+    }
+    if n > MAX_SELF_INTERSECTION_CHECK {
+        tracing::debug!(
+            vertices = n,
+            "ring too long for the self-intersection check"
+        );
+        return false;
+    }
+    let cross =
+        |o: Point2, a: Point2, b: Point2| (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+    let proper = |p1: Point2, p2: Point2, q1: Point2, q2: Point2| {
+        let d1 = cross(q1, q2, p1);
+        let d2 = cross(q1, q2, p2);
+        let d3 = cross(p1, p2, q1);
+        let d4 = cross(p1, p2, q2);
+        ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+            && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    };
+    for i in 0..n {
+        let (a1, a2) = (ring[i], ring[(i + 1) % n]);
+        for j in i + 2..n {
+            if i == 0 && j == n - 1 {
+                continue; // adjacent through the closing vertex
+            }
+            let (b1, b2) = (ring[j], ring[(j + 1) % n]);
+            if proper(a1, a2, b1, b2) {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 /// Writes `plan` as a GeoJSON FeatureCollection in degrees: the first feature is the floor

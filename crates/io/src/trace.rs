@@ -53,6 +53,45 @@ pub enum SkipKind {
     BadBssid,
     /// A header whose `startTime`/`endTime` is not an integer within [`MAX_ABS_TIME_MS`].
     BadHeader,
+    /// A finite value beyond any physical range ([`PHYSICAL_RANGES`]): an acceleration
+    /// above 50 g, a rotation rate above 100 rad/s, a field above 10 000 uT, a rotation
+    /// vector component beyond 2, a waypoint coordinate beyond 1e6 m.
+    OutOfRange,
+    /// A second waypoint at the time of an earlier one (the first is kept).
+    DuplicateWaypoint,
+    /// A waypoint farther than [`crate::floor::OFF_FLOOR_MARGIN_M`] outside the floor's
+    /// `[0, width] x [0, height]` (checked when a floor folder is read).
+    WaypointOffFloor,
+}
+
+/// The physical ranges beyond which a sample is skipped as [`SkipKind::OutOfRange`]: the
+/// largest accepted absolute value of each component (and bias), by record type. Phones
+/// saturate far below them (16 g, 35 rad/s, 5 000 uT); they only stop absurd values such as
+/// `1e308` that are finite, so parse, and would wreck every estimate downstream.
+pub const PHYSICAL_RANGES: [(&str, f64); 5] = [
+    ("acceleration, m/s^2 (50 g)", MAX_ABS_ACCELERATION),
+    ("rotation rate, rad/s", MAX_ABS_ROTATION_RATE),
+    ("magnetic field, uT", MAX_ABS_MAGNETIC_FIELD),
+    ("rotation vector component", MAX_ABS_ROTATION_VECTOR),
+    ("waypoint coordinate, m", MAX_ABS_COORDINATE_M),
+];
+/// Largest accepted acceleration component (and bias), m/s^2: 50 g.
+pub const MAX_ABS_ACCELERATION: f64 = 50.0 * 9.806_65;
+/// Largest accepted rotation rate component (and bias), rad/s.
+pub const MAX_ABS_ROTATION_RATE: f64 = 100.0;
+/// Largest accepted magnetic field component (and bias), uT.
+pub const MAX_ABS_MAGNETIC_FIELD: f64 = 10_000.0;
+/// Largest accepted rotation vector component (a unit quaternion's are within 1).
+pub const MAX_ABS_ROTATION_VECTOR: f64 = 2.0;
+/// Largest accepted waypoint coordinate, metres.
+pub const MAX_ABS_COORDINATE_M: f64 = 1e6;
+
+fn in_range(v: &[f64], max: f64) -> Result<(), SkipKind> {
+    if v.iter().all(|x| x.abs() <= max) {
+        Ok(())
+    } else {
+        Err(SkipKind::OutOfRange)
+    }
 }
 
 impl SkipKind {
@@ -67,6 +106,9 @@ impl SkipKind {
             SkipKind::BadNumber => "bad number",
             SkipKind::BadBssid => "bad BSSID",
             SkipKind::BadHeader => "bad header",
+            SkipKind::OutOfRange => "out of physical range",
+            SkipKind::DuplicateWaypoint => "duplicate waypoint time",
+            SkipKind::WaypointOffFloor => "waypoint off the floor",
         }
     }
 }
@@ -281,7 +323,17 @@ struct Parser<'l> {
     scan_index: HashMap<i64, usize>,
     max_time: i64,
     records_seen: usize,
+    /// Estimated bytes of the walk parsed so far ([`Limits::max_walk_memory_bytes`]).
+    memory: u64,
 }
+
+/// The range of the three calibrated / uncalibrated streams by index: accelerometer,
+/// gyroscope, magnetometer.
+const SENSOR_MAX: [f64; 3] = [
+    MAX_ABS_ACCELERATION,
+    MAX_ABS_ROTATION_RATE,
+    MAX_ABS_MAGNETIC_FIELD,
+];
 
 /// Known record types (the index picks one of three parallel streams).
 #[derive(Clone, Copy)]
@@ -384,6 +436,7 @@ impl<'l> Parser<'l> {
             scan_index: HashMap::new(),
             max_time: i64::MIN,
             records_seen: 0,
+            memory: 0,
         }
     }
 
@@ -464,7 +517,33 @@ impl<'l> Parser<'l> {
             self.skip(SkipKind::BadTime, line_no);
             return Ok(());
         };
-        match self.push(kind, t, &fields[2..], line_no) {
+        let text_bytes: usize = fields[2..].iter().map(|f| f.len()).sum();
+        let item_bytes = match kind {
+            Kind::Vec3(_) | Kind::Rotation => std::mem::size_of::<Vec3Sample>(),
+            Kind::Uncal(_) => std::mem::size_of::<UncalibratedSample>(),
+            Kind::Waypoint => std::mem::size_of::<Waypoint>(),
+            Kind::Beacon => std::mem::size_of::<BeaconSample>() + text_bytes,
+            Kind::Wifi => std::mem::size_of::<WifiEntry>() + text_bytes,
+        };
+        let pushed = self.push(kind, t, &fields[2..], line_no);
+        let charge = match (&pushed, kind) {
+            // A new scan: its own struct, its entry vector and its time index entry.
+            (Ok(true), Kind::Wifi) => {
+                item_bytes + std::mem::size_of::<WifiScan>() + 4 * std::mem::size_of::<usize>()
+            }
+            (Ok(_), _) => item_bytes,
+            (Err(_), _) => 0,
+        };
+        self.memory = self.memory.saturating_add(charge as u64);
+        if self.memory > self.limits.max_walk_memory_bytes {
+            return Err(IoError::LimitExceeded {
+                path: self.path.clone(),
+                what: format!("line {line_no}: parsed walk memory"),
+                limit: "max_walk_memory_bytes",
+                max: self.limits.max_walk_memory_bytes,
+            });
+        }
+        match pushed {
             Ok(true) => {
                 if t < self.max_time {
                     self.report.out_of_order += 1;
@@ -509,6 +588,7 @@ impl<'l> Parser<'l> {
                     v: parse_vec3(v).map_err(Ok)?,
                     accuracy: parse_accuracy(v.get(3)).map_err(Ok)?,
                 };
+                in_range(&sample.v, SENSOR_MAX[i]).map_err(Ok)?;
                 [
                     &mut imu.accelerometer,
                     &mut imu.gyroscope,
@@ -524,6 +604,8 @@ impl<'l> Parser<'l> {
                     bias: parse_vec3(&v[3..6]).map_err(Ok)?,
                     accuracy: parse_accuracy(v.get(6)).map_err(Ok)?,
                 };
+                in_range(&sample.v, SENSOR_MAX[i]).map_err(Ok)?;
+                in_range(&sample.bias, SENSOR_MAX[i]).map_err(Ok)?;
                 [
                     &mut imu.accelerometer_uncalibrated,
                     &mut imu.gyroscope_uncalibrated,
@@ -533,16 +615,19 @@ impl<'l> Parser<'l> {
             }
             Kind::Rotation => {
                 check_count(v.len(), 3, 4).map_err(Ok)?;
-                imu.rotation_vector.push(RotationVectorSample {
+                let sample = RotationVectorSample {
                     t,
                     v: parse_vec3(v).map_err(Ok)?,
                     accuracy: parse_accuracy(v.get(3)).map_err(Ok)?,
-                });
+                };
+                in_range(&sample.v, MAX_ABS_ROTATION_VECTOR).map_err(Ok)?;
+                imu.rotation_vector.push(sample);
             }
             Kind::Waypoint => {
                 check_count(v.len(), 2, 2).map_err(Ok)?;
                 let x = parse_f64(v[0]).map_err(Ok)?;
                 let y = parse_f64(v[1]).map_err(Ok)?;
+                in_range(&[x, y], MAX_ABS_COORDINATE_M).map_err(Ok)?;
                 self.walk.waypoints.push(Waypoint {
                     t,
                     position: wipdr_core::Point2::new(x, y),
@@ -658,6 +743,22 @@ impl<'l> Parser<'l> {
             self.report.duplicate_bssids_removed += scan.dedup_keep_most_recent();
         }
         self.walk.sort_streams();
+        // Two waypoints at one time: two truths for one instant. Keep the first in file order
+        // (the sort is stable), count the others as skipped.
+        let before = self.walk.waypoints.len();
+        self.walk.waypoints.dedup_by_key(|w| w.t);
+        let duplicates = before - self.walk.waypoints.len();
+        if duplicates > 0 {
+            tracing::warn!(file = %self.path.display(), duplicates, "waypoints sharing a time with an earlier one skipped");
+            self.report
+                .skipped
+                .entry(SkipKind::DuplicateWaypoint)
+                .or_default()
+                .count += duplicates;
+            if let Some(c) = self.report.records.get_mut("TYPE_WAYPOINT") {
+                *c = c.saturating_sub(duplicates);
+            }
+        }
         ParsedWalk {
             walk: self.walk,
             report: self.report,

@@ -9,7 +9,10 @@ use wipdr_core::{
     BeaconSample, Bssid, Point2, RotationVectorSample, UncalibratedSample, Vec3Sample, Walk,
     WalkMeta, Waypoint, WifiEntry, WifiScan,
 };
-use wipdr_io::trace::{read_walk_from, write_walk};
+use wipdr_io::trace::{
+    MAX_ABS_ACCELERATION, MAX_ABS_COORDINATE_M, MAX_ABS_MAGNETIC_FIELD, MAX_ABS_ROTATION_RATE,
+    read_walk_from, write_walk,
+};
 use wipdr_io::{IoError, Limits};
 
 fn finite() -> impl Strategy<Value = f64> {
@@ -18,6 +21,19 @@ fn finite() -> impl Strategy<Value = f64> {
         any::<f64>().prop_filter("finite", |v| v.is_finite()),
         Just(0.0),
         Just(-0.0),
+    ]
+}
+
+/// A finite value within `max` (the reader's physical range of a stream: beyond it a
+/// sample is skipped, see `hostile.rs`), including the bound itself.
+fn bounded(max: f64) -> impl Strategy<Value = f64> {
+    prop_oneof![
+        -max..=max,
+        Just(max),
+        Just(-max),
+        Just(0.0),
+        Just(-0.0),
+        -1.0..1.0f64
     ]
 }
 
@@ -36,19 +52,20 @@ fn text() -> impl Strategy<Value = String> {
     "[^\t\r\n]{0,12}"
 }
 
-fn vec3() -> impl Strategy<Value = Vec3Sample> {
-    (time(), [finite(), finite(), finite()], any::<i8>()).prop_map(|(t, v, accuracy)| Vec3Sample {
-        t,
-        v,
-        accuracy,
-    })
-}
-
-fn uncal() -> impl Strategy<Value = UncalibratedSample> {
+fn vec3(max: f64) -> impl Strategy<Value = Vec3Sample> {
     (
         time(),
-        [finite(), finite(), finite()],
-        [finite(), finite(), finite()],
+        [bounded(max), bounded(max), bounded(max)],
+        any::<i8>(),
+    )
+        .prop_map(|(t, v, accuracy)| Vec3Sample { t, v, accuracy })
+}
+
+fn uncal(max: f64) -> impl Strategy<Value = UncalibratedSample> {
+    (
+        time(),
+        [bounded(max), bounded(max), bounded(max)],
+        [bounded(max), bounded(max), bounded(max)],
         any::<i8>(),
     )
         .prop_map(|(t, v, bias, accuracy)| UncalibratedSample {
@@ -143,12 +160,34 @@ fn walk() -> impl Strategy<Value = Walk> {
     use prop::collection::vec as v;
     (
         meta(),
-        v((time(), finite(), finite()), 0..6),
+        v(
+            (
+                time(),
+                bounded(MAX_ABS_COORDINATE_M),
+                bounded(MAX_ABS_COORDINATE_M),
+            ),
+            0..6,
+        ),
         scans(),
         prop::collection::vec(beacon(), 0..3),
-        (v(vec3(), 0..6), v(vec3(), 0..6), v(vec3(), 0..6)),
-        prop::collection::vec((time(), [finite(), finite(), finite()], any::<i8>()), 0..6),
-        (v(uncal(), 0..6), v(uncal(), 0..6), v(uncal(), 0..6)),
+        (
+            v(vec3(MAX_ABS_ACCELERATION), 0..6),
+            v(vec3(MAX_ABS_ROTATION_RATE), 0..6),
+            v(vec3(MAX_ABS_MAGNETIC_FIELD), 0..6),
+        ),
+        prop::collection::vec(
+            (
+                time(),
+                [bounded(2.0), bounded(2.0), bounded(2.0)],
+                any::<i8>(),
+            ),
+            0..6,
+        ),
+        (
+            v(uncal(MAX_ABS_ACCELERATION), 0..6),
+            v(uncal(MAX_ABS_ROTATION_RATE), 0..6),
+            v(uncal(MAX_ABS_MAGNETIC_FIELD), 0..6),
+        ),
     )
         .prop_map(
             |(meta, wps, wifi, beacons, (acc, gyr, mag), rot, (ua, ug, um))| {
@@ -176,6 +215,8 @@ fn walk() -> impl Strategy<Value = Walk> {
                 w.imu.gyroscope_uncalibrated = ug;
                 w.imu.magnetometer_uncalibrated = um;
                 w.sort_streams();
+                // One waypoint per time (the reader keeps the first of a repeated time).
+                w.waypoints.dedup_by_key(|p| p.t);
                 w
             },
         )

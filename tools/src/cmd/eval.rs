@@ -90,6 +90,7 @@ pub fn evaluate_and_report(
         "errors in metres at waypoints (pdr starts at the true first waypoint; every other scheme at the first Wi-Fi fix)\n"
     );
     print!("{}", report.table());
+    check_scored(&report)?;
     if let Some(path) = json {
         crate::plotting::ensure_parent(path)?;
         let value = serde_json::json!({
@@ -120,6 +121,33 @@ pub fn evaluate_and_report(
         println!("wrote {} plots into {}", files, dir.display());
     }
     Ok(report)
+}
+
+/// Fails when a scheme scored no waypoint (its 0.00 m would read as a result), and reports
+/// non-finite errors, which no figure includes.
+fn check_scored(report: &EvalReport) -> Result<()> {
+    let non_finite: usize = report
+        .walks
+        .iter()
+        .map(|w| wipdr_core::stats::ErrorStats::from_errors(&w.score.values()).non_finite)
+        .sum();
+    if non_finite > 0 {
+        eprintln!("warning: {non_finite} non-finite waypoint errors left out of every figure");
+    }
+    let empty: Vec<&str> = report
+        .schemes
+        .iter()
+        .filter(|s| report.pooled.get(*s).is_none_or(|p| p.count == 0))
+        .map(String::as_str)
+        .collect();
+    if !empty.is_empty() {
+        anyhow::bail!(
+            "no waypoint was scored for {} (empty test set, no matched query, or a scoring \
+             start beyond every waypoint): the table above has no result",
+            empty.join(", ")
+        );
+    }
+    Ok(())
 }
 
 /// Runs the subcommand.

@@ -17,12 +17,6 @@ pub struct Args {
     /// `geojson_map.json` and `path_data_files/`).
     #[arg(required = true)]
     pub paths: Vec<PathBuf>,
-    /// Read floors from source, bypassing (and not writing) the binary cache.
-    #[arg(long)]
-    pub no_cache: bool,
-    /// Cache folder for parsed floors.
-    #[arg(long, default_value = cache::DEFAULT_CACHE_DIR)]
-    pub cache_dir: PathBuf,
     /// Only the floor summary, not one line per walk.
     #[arg(long)]
     pub brief: bool,
@@ -88,20 +82,18 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
     let bar = crate::progress::bar(n_files as u64, "walks");
     let on_walk = || bar.inc(1);
     let t0 = Instant::now();
-    let (floor, outcome): (FloorData, Option<CacheOutcome>) = if args.no_cache {
-        let f = wipdr_io::floor::read_floor_dir_with_progress(dir, options, &on_walk)?;
-        (f, None)
-    } else {
-        let (f, o) = cache::read_floor_dir_cached_with(dir, &args.cache_dir, options, &on_walk)?;
-        (f, Some(o))
-    };
+    let settings = crate::data::cache_settings();
+    let (floor, outcome): (FloorData, CacheOutcome) =
+        cache::read_floor(dir, &settings, options, &on_walk)?;
     let elapsed = t0.elapsed().as_secs_f64();
     bar.finish_and_clear();
+    let at = settings.dir.display();
     let how = match outcome {
-        None => "from source, cache off".to_string(),
-        Some(CacheOutcome::Hit) => format!("from the cache in {}", args.cache_dir.display()),
-        Some(CacheOutcome::Miss) => format!("from source, cached in {}", args.cache_dir.display()),
-        Some(CacheOutcome::MissNotStored) => "from source, cache not written".to_string(),
+        CacheOutcome::Disabled => "from source, cache off".to_string(),
+        CacheOutcome::Hit => format!("from the cache in {at}"),
+        CacheOutcome::Miss => format!("from source, cached in {at}"),
+        CacheOutcome::Rebuilt => format!("from source, bad cache file replaced in {at}"),
+        CacheOutcome::MissNotStored => "from source, cache not written".to_string(),
     };
     println!("floor {} ({})", floor.name, floor.dir.display());
     println!("  read in {elapsed:.3} s ({how})");
@@ -332,15 +324,16 @@ mod tests {
         let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);
         floor::write_floor_dir(&dir, &plan, bbox, [&walk]).unwrap();
         let walk_file = dir.join(floor::WALKS_DIR).join("w.txt.gz");
-        let args = |paths: Vec<PathBuf>, no_cache| Args {
+        let args = |paths: Vec<PathBuf>| Args {
             paths,
-            no_cache,
-            cache_dir: tmp.path().join("cache"),
             brief: false,
             limits: None,
         };
-        run(args(vec![dir.clone()], false)).unwrap();
-        run(args(vec![dir.clone(), walk_file], true)).unwrap();
-        assert!(run(args(vec![tmp.path().join("missing.txt")], true)).is_err());
+        crate::data::set_cache(wipdr_io::cache::CacheSettings::in_dir(
+            tmp.path().join("cache"),
+        ));
+        run(args(vec![dir.clone()])).unwrap();
+        run(args(vec![dir.clone(), walk_file])).unwrap();
+        assert!(run(args(vec![tmp.path().join("missing.txt")])).is_err());
     }
 }

@@ -1,5 +1,6 @@
 //! One module per subcommand: `Args` (clap) and `run`.
 
+pub mod cache;
 pub mod cluster;
 pub mod demo;
 pub mod eval;

@@ -45,12 +45,6 @@ pub struct Args {
     /// How many walks per floor to plot (the longest).
     #[arg(long, default_value_t = 2)]
     pub plot_walks: usize,
-    /// Cache folder for parsed floors.
-    #[arg(long, default_value = wipdr_io::cache::DEFAULT_CACHE_DIR)]
-    pub cache_dir: PathBuf,
-    /// Read the walks from source, bypassing the cache.
-    #[arg(long)]
-    pub no_cache: bool,
 }
 
 /// Reads a config file as JSON (`.json`) or TOML (anything else).
@@ -64,20 +58,13 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
     }
 }
 
-/// Reads floor folders (through the cache unless disabled).
-pub(crate) fn read_floors(
-    dirs: &[PathBuf],
-    cache_dir: &Path,
-    no_cache: bool,
-) -> Result<Vec<FloorData>> {
+/// Reads floor folders (through the cache of this run, `--cache-dir` / `--no-cache`).
+pub(crate) fn read_floors(dirs: &[PathBuf]) -> Result<Vec<FloorData>> {
     let opts = ReadOptions::default();
+    let cache = crate::data::cache_settings();
     dirs.iter()
         .map(|d| {
-            let f = if no_cache {
-                wipdr_io::floor::read_floor_dir(d, &opts)
-            } else {
-                wipdr_io::cache::read_floor_dir_cached(d, cache_dir, &opts)
-            };
+            let f = wipdr_io::cache::read_floor(d, &cache, &opts, &|| {}).map(|(f, _)| f);
             let f = f.with_context(|| format!("reading floor {}", d.display()))?;
             if let Some(note) = crate::data::skipped_walks_note(&f) {
                 eprintln!("{note}");
@@ -160,7 +147,7 @@ pub fn run(args: Args) -> Result<()> {
         Some(p) => read_config(p)?,
         None => CalibrationConfig::default(),
     };
-    let floors = read_floors(&args.data, &args.cache_dir, args.no_cache)?;
+    let floors = read_floors(&args.data)?;
     let base_cfg = PdrConfig::sample_code();
 
     let scheme = |name: String, model, source, calibrate, fit_offset, on_baseline_run| PdrScheme {

@@ -79,12 +79,6 @@ pub struct Args {
     /// Where to save the calibrated configuration.
     #[arg(long)]
     pub out: PathBuf,
-    /// Cache folder for parsed floors.
-    #[arg(long, default_value = wipdr_io::cache::DEFAULT_CACHE_DIR)]
-    pub cache_dir: PathBuf,
-    /// Read the walks from source, bypassing the cache.
-    #[arg(long)]
-    pub no_cache: bool,
     /// Mean Wi-Fi error (m) for TCPF's `alpha` (default: the eval's pooled shared-AP Wi-Fi
     /// mean, docs/results/fusion-real.md).
     #[arg(long, default_value_t = 8.09)]
@@ -131,7 +125,7 @@ pub fn run(args: Args) -> Result<()> {
     if !(args.wifi_mean_error > 0.0 && args.wifi_mean_error.is_finite()) {
         anyhow::bail!("--wifi-mean-error must be > 0");
     }
-    let floors = read_floors(&args.data, &args.cache_dir, args.no_cache)?;
+    let floors = read_floors(&args.data)?;
     let floor_runs: Vec<Vec<WalkRun>> = floors.iter().map(|f| run_floor(f, &run_cfg)).collect();
     let train: Vec<WalkSteps<'_>> = floor_runs
         .iter()
