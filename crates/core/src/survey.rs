@@ -9,8 +9,10 @@ use serde::{Deserialize, Serialize};
 ///
 /// ```
 /// use wipdr_core::{Floor, FloorPlan, Walk};
-/// let floor = Floor::new("my/F1", FloorPlan::new(10.0, 10.0, vec![], vec![]), vec![Walk::default()]);
+/// let plan = FloorPlan::new(10.0, 10.0, vec![], vec![])?;
+/// let floor = Floor::new("my/F1", plan, vec![Walk::default()]);
 /// assert_eq!(floor.walks.len(), 1);
+/// # Ok::<(), wipdr_core::CoreError>(())
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Floor {
