@@ -15,10 +15,10 @@ use std::hint::black_box;
 use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_core::Point2;
+use wipdr_fingerprint::MatcherConfig;
 use wipdr_fingerprint::affinity::{
     AffinityConfig, Kernel, Preference, SimilarityMatrix, affinity_propagation,
 };
-use wipdr_fingerprint::cluster_search::{ClusteringMatchersConfig, build_matcher};
 use wipdr_fingerprint::mixdis::{Fingerprints, signal_similarity};
 use wipdr_fingerprint::{
     KnnConfig, KnnMatcher, Matcher, Query, QueryFilter, RadioMap, RadioMapConfig,
@@ -104,17 +104,22 @@ fn bench_matchers_uji1(c: &mut Criterion) {
         "wknn_brute_force".into(),
         Box::new(KnnMatcher::new(map.clone(), KnnConfig::default()).unwrap()),
     )];
-    for spec in [
-        "apc",
-        "apc:sim=signal,clusters=3",
-        "apindex",
-        "apindex:top=4,threshold=0",
-        "med",
+    // Benchmark names kept from the earlier string specs, for comparable criterion history.
+    for (name, config) in [
+        ("apc", "kind = \"apc\""),
+        (
+            "apc_sim_signal_clusters_3",
+            "kind = \"apc\"\nsimilarity = \"signal\"\nclusters_searched = 3",
+        ),
+        ("apindex", "kind = \"apindex\""),
+        (
+            "apindex_top_4_threshold_0",
+            "kind = \"apindex\"\ntop_offline = 4\napply_threshold = false",
+        ),
+        ("med", "kind = \"med\""),
     ] {
-        let m = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())
-            .unwrap()
-            .unwrap();
-        matchers.push((spec.replace([':', ',', '='], "_"), m));
+        let config: MatcherConfig = toml::from_str(config).unwrap();
+        matchers.push((name.into(), config.build_stateless(map.clone()).unwrap()));
     }
     let mut group = c.benchmark_group("matchers_uji1_300_queries");
     group.sample_size(10);

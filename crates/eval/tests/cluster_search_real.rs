@@ -2,9 +2,8 @@
 //! Reads the benchmark CSVs through `wipdr_io`, hence here and not in `wipdr-fingerprint`.
 
 use std::sync::Arc;
-use wipdr_fingerprint::cluster_search::{
-    ClusterSearchMatcher, ClusteringMatchersConfig, apply_spec,
-};
+use wipdr_fingerprint::cluster_search::{ClusterSearchConfig, ClusterSearchMatcher};
+use wipdr_fingerprint::mixdis::SimilarityKind;
 use wipdr_fingerprint::{Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
 
 /// DSI1 (real data, when present): the signal-similarity cluster search searching the 3
@@ -22,9 +21,12 @@ fn real_dsi1_cluster_search_visits_a_quarter_at_brute_force_accuracy() {
     }
     let (train, test) = wipdr_io::fingerprint_csv::read_dataset(dir).unwrap();
     let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).unwrap());
-    let mut cfg = ClusteringMatchersConfig::default();
-    apply_spec("apc:sim=signal,clusters=3", &mut cfg).unwrap();
-    let apc = ClusterSearchMatcher::build(map.clone(), &cfg.apc).unwrap();
+    let cfg = ClusterSearchConfig {
+        similarity: SimilarityKind::Signal,
+        clusters_searched: 3,
+        ..ClusterSearchConfig::default()
+    };
+    let apc = ClusterSearchMatcher::build(map.clone(), &cfg).unwrap();
     let brute =
         wipdr_fingerprint::KnnMatcher::new(map.clone(), wipdr_fingerprint::KnnConfig::default())
             .unwrap();

@@ -506,151 +506,6 @@ impl Matcher for ClusterSearchMatcher {
     }
 }
 
-/// Settings of the matchers `apc`, `apindex` and `med`, by name (for the tools).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-#[serde(default, deny_unknown_fields)]
-pub struct ClusteringMatchersConfig {
-    /// `apc`.
-    pub apc: ClusterSearchConfig,
-    /// `apindex`.
-    pub apindex: crate::ap_index::ApIndexConfig,
-    /// `med`.
-    pub med: crate::med::MedConfig,
-}
-
-/// Names [`build_matcher`] knows.
-pub const MATCHER_NAMES: [&str; 3] = ["apc", "apindex", "med"];
-
-/// Whether `spec` (`NAME` or `NAME:key=value,...`) names one of [`MATCHER_NAMES`].
-pub fn is_clustering_matcher(spec: &str) -> bool {
-    MATCHER_NAMES.contains(&spec.split(':').next().unwrap_or(""))
-}
-
-fn parse_settings(spec: &str) -> Result<Vec<(String, String)>, FingerprintError> {
-    let Some((_, rest)) = spec.split_once(':') else {
-        return Ok(Vec::new());
-    };
-    rest.split(',')
-        .filter(|s| !s.is_empty())
-        .map(|kv| {
-            kv.split_once('=')
-                .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-                .ok_or_else(|| {
-                    FingerprintError::InvalidConfig(format!(
-                        "{spec}: expected key=value, got {kv:?}"
-                    ))
-                })
-        })
-        .collect()
-}
-
-fn parse_num<T: std::str::FromStr>(spec: &str, key: &str, v: &str) -> Result<T, FingerprintError> {
-    v.parse()
-        .map_err(|_| FingerprintError::InvalidConfig(format!("{spec}: bad value {v:?} for {key}")))
-}
-
-fn parse_metric(spec: &str, v: &str) -> Result<Metric, FingerprintError> {
-    Metric::parse(v)
-        .ok_or_else(|| FingerprintError::InvalidConfig(format!("{spec}: unknown metric {v:?}")))
-}
-
-fn parse_representation(spec: &str, v: &str) -> Result<Representation, FingerprintError> {
-    Representation::parse(v).ok_or_else(|| {
-        FingerprintError::InvalidConfig(format!("{spec}: unknown representation {v:?}"))
-    })
-}
-
-/// Applies `NAME:key=value,...` settings to `config`. Keys: `apc`: `n` (strongest APs),
-/// `k`, `clusters` (nearest clusters searched), `slack`, `centre` (exemplar|mean), `sim`
-/// (mixdis|signal), `damping`, `kmeans` (K-means baseline with this mean cluster size),
-/// `metric` and `rep` (the inner WKNN, names of [`Metric::parse`] /
-/// [`Representation::parse`]); `apindex`: `k`, `top` (offline APs indexed), `moving` (`0` or
-/// `1`: assume a moving walker when no motion is given; any other number: the moving
-/// threshold in dBm, e.g. `moving=-80`), `still` (the stationary threshold, dBm),
-/// `still_after` (ms without a step before the walker counts as stationary), `threshold`
-/// (0|1), `metric`, `rep`; `med`: `k`, `window`.
-pub fn apply_spec(
-    spec: &str,
-    config: &mut ClusteringMatchersConfig,
-) -> Result<(), FingerprintError> {
-    let name = spec.split(':').next().unwrap_or("");
-    for (k, v) in parse_settings(spec)? {
-        let bad = || FingerprintError::InvalidConfig(format!("{spec}: unknown key {k:?}"));
-        match (name, k.as_str()) {
-            ("apc", "n") => config.apc.n_strongest = parse_num(spec, &k, &v)?,
-            ("apc", "k") => config.apc.k = parse_num(spec, &k, &v)?,
-            ("apc", "clusters") => config.apc.clusters_searched = parse_num(spec, &k, &v)?,
-            ("apc", "slack") => config.apc.centre_slack = parse_num(spec, &k, &v)?,
-            ("apc", "damping") => config.apc.affinity.damping = parse_num(spec, &k, &v)?,
-            ("apc", "kmeans") => {
-                config.apc.method = ClusterMethod::KMeans {
-                    mean_size: parse_num(spec, &k, &v)?,
-                }
-            }
-            ("apc", "centre") => {
-                config.apc.centre = match v.as_str() {
-                    "exemplar" => ClusterCentre::Exemplar,
-                    "mean" => ClusterCentre::Mean,
-                    _ => return Err(bad()),
-                }
-            }
-            ("apc", "sim") => {
-                config.apc.similarity = match v.as_str() {
-                    "mixdis" => SimilarityKind::MixDis,
-                    "signal" => SimilarityKind::Signal,
-                    _ => return Err(bad()),
-                }
-            }
-            ("apc", "metric") => config.apc.metric = parse_metric(spec, &v)?,
-            ("apc", "rep") => config.apc.representation = parse_representation(spec, &v)?,
-            ("apindex", "k") => config.apindex.k = parse_num(spec, &k, &v)?,
-            ("apindex", "top") => config.apindex.top_offline = parse_num(spec, &k, &v)?,
-            ("apindex", "moving") => match v.as_str() {
-                "0" | "1" => config.apindex.assume_moving = v == "1",
-                _ => config.apindex.moving_threshold_dbm = parse_num(spec, &k, &v)?,
-            },
-            ("apindex", "still") => {
-                config.apindex.stationary_threshold_dbm = parse_num(spec, &k, &v)?
-            }
-            ("apindex", "still_after") => {
-                config.apindex.stationary_after_ms = parse_num(spec, &k, &v)?
-            }
-            ("apindex", "metric") => config.apindex.metric = parse_metric(spec, &v)?,
-            ("apindex", "rep") => config.apindex.representation = parse_representation(spec, &v)?,
-            ("apindex", "threshold") => config.apindex.apply_threshold = v == "1",
-            ("med", "k") => config.med.k = parse_num(spec, &k, &v)?,
-            ("med", "window") => config.med.window = parse_num(spec, &k, &v)?,
-            _ => return Err(bad()),
-        }
-    }
-    Ok(())
-}
-
-/// Builds the matcher `spec` (`apc`, `apindex`, `med`, optionally `NAME:key=value,...`, see
-/// [`apply_spec`]) over `map`; `Ok(None)` for another name. `med` built here is its stateless
-/// single-scan form; walks use [`crate::med::MedMatcher::locate_next`].
-pub fn build_matcher(
-    spec: &str,
-    map: impl Into<Arc<RadioMap>>,
-    config: &ClusteringMatchersConfig,
-) -> Result<Option<Box<dyn Matcher>>, FingerprintError> {
-    if !is_clustering_matcher(spec) {
-        return Ok(None);
-    }
-    let mut config = config.clone();
-    apply_spec(spec, &mut config)?;
-    let config = &config;
-    Ok(match spec.split(':').next().unwrap_or("") {
-        "apc" => Some(Box::new(ClusterSearchMatcher::build(map, &config.apc)?)),
-        "apindex" => Some(Box::new(crate::ap_index::ApIndexMatcher::new(
-            map,
-            config.apindex,
-        )?)),
-        "med" => Some(Box::new(crate::med::MedMatcher::new(map, config.med)?)),
-        _ => None,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -699,21 +554,37 @@ mod tests {
     }
 
     #[test]
-    fn specs_set_thresholds_and_the_inner_search() {
-        let mut cfg = ClusteringMatchersConfig::default();
-        apply_spec("apindex:moving=-80,still=-90,still_after=3000", &mut cfg).unwrap();
-        assert_eq!(cfg.apindex.moving_threshold_dbm, -80.0);
-        assert_eq!(cfg.apindex.stationary_threshold_dbm, -90.0);
-        assert_eq!(cfg.apindex.stationary_after_ms, 3000);
-        assert!(!cfg.apindex.assume_moving);
-        apply_spec("apindex:moving=1,metric=sorensen,rep=powed", &mut cfg).unwrap();
-        assert!(cfg.apindex.assume_moving);
-        assert_eq!(cfg.apindex.moving_threshold_dbm, -80.0);
-        assert_eq!(cfg.apindex.metric, Metric::Sorensen);
-        apply_spec("apc:metric=manhattan,rep=positive", &mut cfg).unwrap();
-        assert_eq!(cfg.apc.inner().metric, Metric::Manhattan);
-        assert!(apply_spec("apindex:moving=loud", &mut cfg).is_err());
-        assert!(apply_spec("apc:metric=cosine", &mut cfg).is_err());
+    fn configs_set_thresholds_and_the_inner_search() {
+        use crate::MatcherConfig;
+        let c: MatcherConfig = toml::from_str(
+            "kind = \"apindex\"\nmoving_threshold_dbm = -80.0\nstationary_threshold_dbm = -90.0\n\
+             stationary_after_ms = 3000\nmetric = { kind = \"sorensen\" }",
+        )
+        .unwrap();
+        let MatcherConfig::Apindex(a) = c else {
+            panic!("{c:?}")
+        };
+        assert_eq!(a.moving_threshold_dbm, -80.0);
+        assert_eq!(a.stationary_threshold_dbm, -90.0);
+        assert_eq!(a.stationary_after_ms, 3000);
+        assert!(!a.assume_moving);
+        assert_eq!(a.metric, Metric::Sorensen);
+        let c: MatcherConfig = toml::from_str(
+            "kind = \"apc\"\nmetric = { kind = \"manhattan\" }\nrepresentation = { kind = \"positive\" }",
+        )
+        .unwrap();
+        let MatcherConfig::Apc(apc) = c else {
+            panic!("{c:?}")
+        };
+        assert_eq!(apc.inner().metric, Metric::Manhattan);
+        assert!(
+            toml::from_str::<MatcherConfig>("kind = \"apindex\"\nmoving_threshold_dbm = \"loud\"")
+                .is_err()
+        );
+        assert!(
+            toml::from_str::<MatcherConfig>("kind = \"apc\"\nmetric = { kind = \"cosine\" }")
+                .is_err()
+        );
     }
 
     #[test]

@@ -356,6 +356,24 @@ impl MatcherConfig {
     }
 }
 
+impl MatcherConfig {
+    /// Builds the kind's stateless matcher over `map`, for matching queries one at a time
+    /// without a stream (the fingerprint benchmarks of `wipdr fingerprint-eval`): MED is then
+    /// its single-scan form (a window of one scan), the others are as streamed.
+    pub fn build_stateless(
+        &self,
+        map: Arc<RadioMap>,
+    ) -> Result<Box<dyn Matcher>, FingerprintError> {
+        self.validate()?;
+        Ok(match self {
+            Self::Wknn(c) => Box::new(KnnMatcher::new(map, *c)?),
+            Self::Apc(c) => Box::new(ClusterSearchMatcher::build(map, c)?),
+            Self::Apindex(c) => Box::new(ApIndexMatcher::new(map, *c)?),
+            Self::Med(c) => Box::new(MedMatcher::new(map, *c)?),
+        })
+    }
+}
+
 fn unknown_kind(kind: &str) -> FingerprintError {
     FingerprintError::InvalidConfig(format!(
         "matcher.kind: unknown matcher {kind:?} (known: {})",

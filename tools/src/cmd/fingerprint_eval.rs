@@ -6,27 +6,31 @@
 //! wipdr fingerprint-eval --dataset ../shared/data/fingerprint/* --matcher tuned-cv --json out.json
 //! ```
 //!
-//! Matcher names: `nn`, `knn`, `wknn` (1/d), `wknn2` (1/d^2), each optionally with settings
-//! `NAME:k=13,metric=sorensen,rep=powed,w=1` (metric: manhattan, euclidean, sqeuclidean,
-//! sorensen, neyman, neyman_query, plgd, shared_ap; rep: raw, positive, exponential, powed,
-//! exponential_null0; w: exponent of 1/d^w, 0 = uniform); `tuned-cv` picks the literature
-//! k-NN configuration by cross-validation on train.csv (honest), `tuned-test` picks it on
-//! test.csv (as the papers did: optimistic, labelled so); `--tune-by 2d`,
-//! `--tune-floor-first V` and `--tune-code-variants` change the criterion, the matching and
-//! the grid. `apc` (cluster search, paper 001 §2.3), `apindex` (AP-matching index, paper 002
-//! eq. 6) and `med` (single-scan form of paper 004 eq. 11) take `NAME:key=value,...` settings
-//! (`wipdr_fingerprint::cluster_search::apply_spec`).
+//! Matchers (`--matcher`, several allowed): the presets `nn`, `knn`, `wknn` (1/d), `wknn2`
+//! (1/d^2) with `--k`; `apc` (cluster search, paper 001 §2.3), `apindex` (AP-matching index,
+//! paper 002 eq. 6) and `med` (single-scan form of paper 004 eq. 11) with the papers'
+//! settings; `tuned-cv` picks the literature k-NN configuration by cross-validation on
+//! train.csv (honest), `tuned-test` picks it on test.csv (as the papers did: optimistic,
+//! labelled so); `--tune-by 2d`, `--tune-floor-first V` and `--tune-code-variants` change the
+//! criterion, the matching and the grid. Any other setting is a `wipdr_fingerprint::MatcherConfig`
+//! written as an inline TOML table, the same fields as a config file's `[matcher]`:
+//!
+//! ```text
+//! --matcher 'kind = "wknn", k = 13, metric = { kind = "sorensen" }, representation = { kind = "powed", beta = 2.718 }'
+//! --matcher 'kind = "apc", similarity = "signal", clusters_searched = 3'
+//! --matcher 'kind = "apindex", top_offline = 4, apply_threshold = false'
+//! ```
+//!
+//! A table's missing fields take the kind's paper settings (`MatcherConfig::paper`); an
+//! unknown field or kind is an error.
 
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_eval::fingerprint_benchmark::{self as benchmark, Grid, Truth};
-use wipdr_fingerprint::cluster_search::{
-    ClusteringMatchersConfig, build_matcher, is_clustering_matcher,
-};
 use wipdr_fingerprint::{
-    FloorFirstMatcher, KnnConfig, KnnMatcher, Matcher, Metric, Query, QueryFilter, RadioMap,
-    RadioMapConfig, Representation, Weighting,
+    FloorFirstMatcher, KnnConfig, KnnMatcher, Matcher, MatcherConfig, Metric, Query, QueryFilter,
+    RadioMap, RadioMapConfig, Representation,
 };
 use wipdr_io::fingerprint_csv::read_dataset;
 
@@ -97,45 +101,61 @@ struct Row {
     failed: usize,
 }
 
-/// Parses a matcher spec into a k-NN configuration (`None` for the tuned names).
-fn parse_spec(spec: &str, default_k: usize) -> anyhow::Result<Option<KnnConfig>> {
-    let (name, settings) = spec.split_once(':').unwrap_or((spec, ""));
-    let mut cfg = match name {
-        "nn" => KnnConfig::nn(),
-        "knn" => KnnConfig::knn(default_k),
-        "wknn" => KnnConfig::wknn(default_k, 1.0),
-        "wknn2" => KnnConfig::wknn(default_k, 2.0),
-        "tuned-cv" | "tuned-test" => return Ok(None),
-        other => bail!(
-            "unknown matcher {other:?}; available: nn, knn, wknn, wknn2 (optionally NAME:k=..,metric=..,rep=..,w=..), tuned-cv, tuned-test"
-        ),
-    };
-    for kv in settings.split(',').filter(|s| !s.is_empty()) {
-        let (key, value) = kv
-            .split_once('=')
-            .with_context(|| format!("matcher setting {kv:?} is not key=value"))?;
-        match key {
-            "k" => cfg.k = value.parse().context("k")?,
-            "metric" => {
-                cfg.metric =
-                    Metric::parse(value).with_context(|| format!("unknown metric {value:?}"))?
+/// What one `--matcher` value asks for.
+#[derive(Debug, Clone, PartialEq)]
+enum Choice {
+    /// A brute-force k-NN (the sparse or GEMM engine of this tool).
+    Knn(KnnConfig),
+    /// Another matcher of [`MatcherConfig`] (cluster search, AP index, single-scan MED).
+    Other(MatcherConfig),
+    /// The literature k-NN picked by cross-validation on train.csv (`tuned-cv`) or on
+    /// test.csv (`tuned-test`, optimistic).
+    Tuned,
+}
+
+/// Parses a `--matcher` value: a preset name (`nn`, `knn`, `wknn`, `wknn2` with `--k`;
+/// `apc`, `apindex`, `med` with the papers' settings; `tuned-cv`, `tuned-test`) or a
+/// [`MatcherConfig`] as an inline TOML table (`'kind = "apindex", top_offline = 4'`, braces
+/// optional). A table's missing fields take the kind's paper settings (`k` of `wknn`: `--k`);
+/// an unknown field or kind is an error naming it.
+fn parse_matcher(spec: &str, default_k: usize) -> anyhow::Result<Choice> {
+    let knn = |c: KnnConfig| Choice::Knn(c);
+    Ok(match spec {
+        "nn" => knn(KnnConfig::nn()),
+        "knn" => knn(KnnConfig::knn(default_k)),
+        "wknn" => knn(KnnConfig::wknn(default_k, 1.0)),
+        "wknn2" => knn(KnnConfig::wknn(default_k, 2.0)),
+        "tuned-cv" | "tuned-test" => Choice::Tuned,
+        "apc" | "apindex" | "med" => Choice::Other(MatcherConfig::paper(spec)?),
+        table if table.contains('=') => {
+            let inline = if table.trim_start().starts_with('{') {
+                table.to_string()
+            } else {
+                format!("{{ {table} }}")
+            };
+            let doc: toml::Table = toml::from_str(&format!("matcher = {inline}"))
+                .with_context(|| format!("--matcher {spec:?}: not a TOML inline table"))?;
+            let user = serde_json::to_value(&doc["matcher"])?;
+            let kind = user
+                .get("kind")
+                .and_then(serde_json::Value::as_str)
+                .with_context(|| format!("--matcher {spec:?}: needs kind = \"wknn\" | \"apc\" | \"apindex\" | \"med\""))?;
+            let base = match MatcherConfig::paper(kind)? {
+                MatcherConfig::Wknn(c) => MatcherConfig::Wknn(KnnConfig { k: default_k, ..c }),
+                other => other,
+            };
+            let cfg: MatcherConfig = wipdr_positioning::merge::from_value_onto(user, &base)
+                .with_context(|| format!("--matcher {spec:?}"))?;
+            cfg.validate()?;
+            match cfg {
+                MatcherConfig::Wknn(c) => knn(c),
+                other => Choice::Other(other),
             }
-            "rep" => {
-                cfg.representation = Representation::parse(value)
-                    .with_context(|| format!("unknown representation {value:?}"))?
-            }
-            "w" => {
-                let w: f64 = value.parse().context("w")?;
-                cfg.weighting = if w == 0.0 {
-                    Weighting::Uniform
-                } else {
-                    Weighting::InverseDistance { power: w }
-                };
-            }
-            other => bail!("unknown matcher setting {other:?} (k, metric, rep, w)"),
         }
-    }
-    Ok(Some(cfg))
+        other => bail!(
+            "unknown matcher {other:?}; available: nn, knn, wknn, wknn2, apc, apindex, med, tuned-cv, tuned-test, or a TOML table such as 'kind = \"wknn\", k = 13, metric = {{ kind = \"sorensen\" }}'"
+        ),
+    })
 }
 
 /// Runs the subcommand.
@@ -145,11 +165,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     // Validate every spec before any work.
-    for spec in &args.matcher {
-        if !is_clustering_matcher(spec) {
-            parse_spec(spec, args.k)?;
-        }
-    }
+    let choices: Vec<Choice> = args
+        .matcher
+        .iter()
+        .map(|spec| parse_matcher(spec, args.k))
+        .collect::<anyhow::Result<_>>()?;
     let mut rows: Vec<Row> = Vec::new();
     let bar = crate::progress::bar(
         (args.dataset.len() * args.matcher.len()) as u64,
@@ -188,10 +208,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if skipped > 0 {
             eprintln!("{name}: {skipped} test rows without usable APs skipped");
         }
-        for spec in &args.matcher {
-            // Issue 4's matchers (apc, apindex, med single-scan), default settings.
-            if let Some(m) = build_matcher(spec, map.clone(), &ClusteringMatchersConfig::default())?
-            {
+        for (spec, choice) in args.matcher.iter().zip(&choices) {
+            // Cluster search, AP index, single-scan MED.
+            if let Choice::Other(config) = choice {
+                let m = config.build_stateless(map.clone())?;
                 let (score, qps) = benchmark::evaluate(m.as_ref(), &queries, &truth);
                 rows.push(Row {
                     dataset: name.clone(),
@@ -212,9 +232,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 bar.inc(1);
                 continue;
             }
-            let (cfg, selection) = match parse_spec(spec, args.k)? {
-                Some(cfg) => (cfg, "fixed".to_string()),
-                None => {
+            let (cfg, selection) = match choice {
+                Choice::Knn(cfg) => (*cfg, "fixed".to_string()),
+                Choice::Other(_) => unreachable!("handled above"),
+                Choice::Tuned => {
                     let mut grid = Grid {
                         k_max: args.tune_k_max,
                         floor_votes: args.tune_floor_first,
@@ -316,7 +337,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "{:<8} {:<12} {:>8.2} {:>8.2} {:>7.2} {:>7.2} {:>7.2} {:>6.3} {:>7.3} {:>10.0}  {}{}",
             r.dataset,
-            r.matcher.split(':').next().unwrap_or(""),
+            r.matcher.chars().take(12).collect::<String>(),
             r.mean_2d,
             r.mean_3d,
             r.p50,
@@ -343,19 +364,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use wipdr_fingerprint::Weighting;
 
     #[test]
-    fn specs_parse() {
-        let c = parse_spec("wknn:k=13,metric=sorensen,rep=powed,w=2", 5)
-            .unwrap()
-            .unwrap();
+    fn matcher_values_parse() {
+        let c = parse_matcher(
+            "kind = \"wknn\", k = 13, metric = { kind = \"sorensen\" }, weighting = { kind = \"inverse_distance\", power = 2.0 }",
+            5,
+        )
+        .unwrap();
+        let Choice::Knn(c) = c else { panic!("{c:?}") };
         assert_eq!(c.k, 13);
         assert_eq!(c.metric, Metric::Sorensen);
         assert_eq!(c.weighting, Weighting::InverseDistance { power: 2.0 });
-        assert_eq!(parse_spec("nn", 5).unwrap().unwrap().k, 1);
-        assert!(parse_spec("tuned-cv", 5).unwrap().is_none());
-        assert!(parse_spec("bogus", 5).is_err());
-        assert!(parse_spec("knn:metric=nope", 5).is_err());
-        assert!(parse_spec("knn:k", 5).is_err());
+        assert_eq!(c.representation, Representation::Raw);
+        // A table without k takes --k.
+        let Choice::Knn(c) = parse_matcher("{ kind = \"wknn\" }", 7).unwrap() else {
+            panic!()
+        };
+        assert_eq!(c.k, 7);
+        assert_eq!(
+            parse_matcher("nn", 5).unwrap(),
+            Choice::Knn(KnnConfig::nn())
+        );
+        assert_eq!(parse_matcher("tuned-cv", 5).unwrap(), Choice::Tuned);
+        let Choice::Other(MatcherConfig::Apindex(a)) = parse_matcher(
+            "kind = \"apindex\", top_offline = 4, apply_threshold = false",
+            5,
+        )
+        .unwrap() else {
+            panic!()
+        };
+        assert!(a.top_offline == 4 && !a.apply_threshold);
+        assert_eq!(a.metric, Metric::Euclidean); // the paper's, in the benchmark context
+        // The documented tables of docs/results/clustering.md parse.
+        for table in [
+            "kind = \"apc\", similarity = \"signal\", clusters_searched = 3",
+            "kind = \"apc\", method = { k_means = { mean_size = 10 } }, clusters_searched = 3",
+            "kind = \"wknn\", k = 13, metric = { kind = \"sorensen\" }, representation = { kind = \"powed\", beta = 2.718 }",
+        ] {
+            assert!(parse_matcher(table, 5).is_ok(), "{table}");
+        }
+        assert!(parse_matcher("bogus", 5).is_err());
+        assert!(parse_matcher("kind = \"wknn\", metric = { kind = \"nope\" }", 5).is_err());
+        assert!(parse_matcher("kind = \"wknn\", kk = 3", 5).is_err());
+        assert!(parse_matcher("k = 3", 5).is_err());
+        assert!(parse_matcher("kind = \"med\", window = 0", 5).is_err());
     }
 }
