@@ -12,7 +12,6 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::path::PathBuf;
-use std::sync::Arc;
 use wipdr_eval::fold::{FoldModel, folds_of};
 use wipdr_eval::pipeline::{EvalConfig, FloorEnv, FloorInput};
 use wipdr_positioning::{Positioner, Sample, samples_of};
@@ -39,10 +38,7 @@ fn floor() -> FloorInput {
         dirs.remove(0)
     };
     let data = wipdr_io::floor::read_floor_dir(&dir, &Default::default()).expect("floor reads");
-    FloorInput {
-        label: dir.display().to_string(),
-        data: Arc::new(data),
-    }
+    FloorInput::new(dir.display().to_string(), data.into_floor())
 }
 
 fn positioner(c: &mut Criterion) {
@@ -51,14 +47,9 @@ fn positioner(c: &mut Criterion) {
     // The longest walk, positioned with its own fold's model.
     let walks = &floor.data.walks;
     let index = (0..walks.len())
-        .max_by(|&a, &b| {
-            walks[a]
-                .walk
-                .duration_s()
-                .total_cmp(&walks[b].walk.duration_s())
-        })
+        .max_by(|&a, &b| walks[a].duration_s().total_cmp(&walks[b].duration_s()))
         .expect("a walk");
-    let walk = &walks[index].walk;
+    let walk = &walks[index];
     let model = FoldModel::build(&floor, folds_of(&floor)[index], &cfg).expect("fold model");
     let site = model.site(&FloorEnv::new(&floor).site);
     let samples: Vec<Sample> = samples_of(walk).collect();

@@ -3,7 +3,6 @@
 use crate::progress;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::OnceLock;
 use wipdr_eval::pipeline::FloorInput;
 use wipdr_io::cache::{self, CacheOutcome, CacheSettings};
@@ -115,30 +114,33 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
     })
 }
 
-/// Reads floor folders through the parse cache of this run ([`cache_settings`]), with a
-/// progress bar over the walks read from source.
-pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
+/// Reads one floor folder through the parse cache of this run ([`cache_settings`]), with a
+/// progress bar over the walks read from source; skipped walks are reported.
+pub fn load_floor_data(dir: &Path) -> Result<FloorData> {
     let settings = cache_settings();
-    let mut out = Vec::with_capacity(dirs.len());
-    for dir in dirs {
-        let n = wipdr_io::floor::walk_files(dir)
-            .map(|f| f.len() as u64)
-            .unwrap_or(0);
-        let pb = progress::bar(n, &floor_label(dir));
-        let (data, outcome) =
-            cache::read_floor(dir, &settings, &ReadOptions::default(), &|| pb.inc(1))
-                .with_context(|| format!("reading floor {}", dir.display()))?;
-        pb.finish_and_clear();
-        if let Some(note) = skipped_walks_note(&data) {
-            eprintln!("{note}");
-        }
-        tracing::info!(floor = %dir.display(), walks = data.walks.len(), cached = matches!(outcome, CacheOutcome::Hit), "floor loaded");
-        out.push(FloorInput {
-            label: floor_label(dir),
-            data: Arc::new(data),
-        });
+    let n = wipdr_io::floor::walk_files(dir)
+        .map(|f| f.len() as u64)
+        .unwrap_or(0);
+    let pb = progress::bar(n, &floor_label(dir));
+    let (data, outcome) = cache::read_floor(dir, &settings, &ReadOptions::default(), &|| pb.inc(1))
+        .with_context(|| format!("reading floor {}", dir.display()))?;
+    pb.finish_and_clear();
+    if let Some(note) = skipped_walks_note(&data) {
+        eprintln!("{note}");
     }
-    Ok(out)
+    tracing::info!(floor = %dir.display(), walks = data.walks.len(), cached = matches!(outcome, CacheOutcome::Hit), "floor loaded");
+    Ok(data)
+}
+
+/// Reads floor folders ([`load_floor_data`]) into the evaluation's core vocabulary, each
+/// labelled by [`floor_label`] and remembering its folder (for the floor image of plots).
+pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
+    dirs.iter()
+        .map(|dir| {
+            let data = load_floor_data(dir)?;
+            Ok(FloorInput::new(floor_label(dir), data.into_floor()).with_dir(dir))
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -91,8 +91,9 @@ pub fn write_all(
 /// The floor's image, or `None` (with a warning when it exists but cannot be used): the
 /// plots then fall back to the vector plan.
 fn floor_image_of(floor: &FloorInput) -> Option<FloorImage> {
-    let data = &floor.data;
-    match FloorImage::load(&data.dir, data.width, data.height) {
+    let plan = &floor.data.plan;
+    let dir = floor.dir.as_ref()?;
+    match FloorImage::load(dir, plan.width, plan.height) {
         Ok(found) => {
             match &found {
                 Some(image) => {

@@ -38,7 +38,7 @@ pub fn folds_of(floor: &FloorInput) -> Vec<usize> {
         .data
         .walks
         .iter()
-        .map(|w| w.walk.meta.id.as_str())
+        .map(|w| w.meta.id.as_str())
         .collect();
     folds_by_name(&ids)
 }
@@ -52,7 +52,7 @@ impl FoldModel {
             .iter()
             .zip(&folds)
             .filter(|(_, f)| **f != fold)
-            .map(|(w, _)| &w.walk)
+            .map(|(w, _)| w)
             .collect();
         let fp_err = |source| EvalError::Fingerprint {
             floor: floor.label.clone(),

@@ -17,11 +17,10 @@ use crate::scoring::{Track, score_track};
 use rayon::prelude::*;
 use std::sync::Arc;
 use thiserror::Error;
-use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::trails::TrailRaster;
-use wipdr_io::floor::FloorData;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
 use wipdr_pdr::{Pdr, PdrConfig};
 use wipdr_positioning::{
@@ -98,13 +97,34 @@ pub enum EvalError {
 
 pub use crate::config::EvalConfig;
 
-/// A floor under evaluation: its label (as given on the command line) and data.
+/// A floor under evaluation: its label (as given on the command line) and the floor in the
+/// core vocabulary (plan + walks), wherever it came from (ILC or IPIN files, the Python
+/// package, walks built in code).
 #[derive(Debug, Clone)]
 pub struct FloorInput {
     /// Label used in reports.
     pub label: String,
-    /// The parsed floor.
-    pub data: Arc<FloorData>,
+    /// The floor.
+    pub data: Arc<Floor>,
+    /// The folder it was read from, where it was (plots look for the floor image there).
+    pub dir: Option<std::path::PathBuf>,
+}
+
+impl FloorInput {
+    /// A labelled floor.
+    pub fn new(label: impl Into<String>, floor: Floor) -> Self {
+        Self {
+            label: label.into(),
+            data: Arc::new(floor),
+            dir: None,
+        }
+    }
+
+    /// The floor with the folder it was read from.
+    pub fn with_dir(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
+        self.dir = Some(dir.into());
+        self
+    }
 }
 
 /// One test walk turned into scheme inputs.
@@ -217,7 +237,7 @@ fn prepare_fold(
     let prepared: Vec<PreparedWalk> = model
         .test_walks
         .par_iter()
-        .map(|&i| model.prepare_walk(floor, floor_index, &floor.data.walks[i].walk, cfg))
+        .map(|&i| model.prepare_walk(floor, floor_index, &floor.data.walks[i], cfg))
         .collect();
     // Matcher cost of the fold (for `-v` runs: visited fraction, summed over the fold's walks).
     let scans: usize = prepared.iter().map(|p| p.observations.len()).sum();
@@ -319,7 +339,7 @@ pub fn locate(
     let walks = &floor.data.walks;
     let index = walks
         .iter()
-        .position(|w| w.walk.meta.id == walk_id)
+        .position(|w| w.meta.id == walk_id)
         .ok_or_else(|| EvalError::UnknownWalk {
             floor: floor.label.clone(),
             walk: walk_id.to_string(),
@@ -333,7 +353,7 @@ pub fn locate(
     }
     let fold = crate::fold::folds_of(floor)[index];
     let model = FoldModel::build(floor, fold, cfg)?;
-    let walk = &walks[index].walk;
+    let walk = &walks[index];
     let scheme_cfg = cfg.scheme(scheme)?;
     let start = (scheme_cfg.name() == "pdr")
         .then(|| walk.waypoints.first().map(|w| (w.t, w.position)))

@@ -2,7 +2,6 @@
 //! reaches a scheme, per-walk and pooled figures agree, and an interrupted sweep resumed
 //! ends with the same file as an uninterrupted one.
 
-use std::sync::Arc;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 use wipdr_eval::sweep::{self, SweepOptions, SweepSpec};
 use wipdr_fingerprint::MatcherConfig;
@@ -29,18 +28,11 @@ fn test_walk_waypoints_never_reach_a_scheme() {
 
     // Move every waypoint of the victim walk far away.
     let mut data = (*floor.data).clone();
-    let w = data
-        .walks
-        .iter_mut()
-        .find(|w| w.walk.meta.id == victim)
-        .unwrap();
-    for wp in &mut w.walk.waypoints {
+    let w = data.walks.iter_mut().find(|w| w.meta.id == victim).unwrap();
+    for wp in &mut w.waypoints {
         wp.position += wipdr_core::Vector2::new(500.0, -300.0);
     }
-    let moved = FloorInput {
-        label: floor.label.clone(),
-        data: Arc::new(data),
-    };
+    let moved = FloorInput::new(floor.label.clone(), data);
     let after = pipeline::prepare(std::slice::from_ref(&moved), &cfg).unwrap();
 
     // Walks of the victim's fold (the victim included) get identical inputs: their radio map
@@ -98,12 +90,7 @@ fn per_walk_and_pooled_figures_agree() {
         let pooled = report.pooled[s];
         let n: usize = walks.iter().map(|w| w.score.errors.len()).sum();
         let skipped: usize = walks.iter().map(|w| w.score.skipped).sum();
-        let total_wp: usize = floor
-            .data
-            .walks
-            .iter()
-            .map(|w| w.walk.waypoints.len())
-            .sum();
+        let total_wp: usize = floor.data.walks.iter().map(|w| w.waypoints.len()).sum();
         assert_eq!(pooled.count, n);
         assert_eq!(pooled.skipped, skipped);
         assert_eq!(

@@ -2,7 +2,6 @@
 //! trail raster that such a waypoint makes absurd is skipped with a warning, and the schemes
 //! still run on the fixture floor.
 
-use std::sync::Arc;
 use wipdr_core::Point2;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 
@@ -14,14 +13,11 @@ fn a_far_waypoint_does_not_crash_the_evaluation() {
     for far in [1e20, 1e308] {
         let floor = fixture_floor();
         let mut data = (*floor.data).clone();
-        let waypoints = &mut data.walks[0].walk.waypoints;
+        let waypoints = &mut data.walks[0].waypoints;
         assert!(waypoints.len() >= 2, "the fixture walk has a trail");
         let last = waypoints.len() - 1;
         waypoints[last].position = Point2::new(far, 0.0);
-        let moved = FloorInput {
-            label: floor.label.clone(),
-            data: Arc::new(data),
-        };
+        let moved = FloorInput::new(floor.label.clone(), data);
         let schemes = ["wifi".to_string(), "pmf".to_string()];
         let cfg = EvalConfig::default();
         let report = pipeline::evaluate(std::slice::from_ref(&moved), &cfg, &schemes, &|| {})

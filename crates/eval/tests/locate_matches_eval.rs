@@ -27,7 +27,7 @@ fn check(cfg: &EvalConfig) {
             .data
             .walks
             .iter()
-            .find(|w| w.walk.meta.id == result.walk)
+            .find(|w| w.meta.id == result.walk)
             .unwrap();
         for scheme in &schemes {
             let from_eval = report
@@ -42,9 +42,9 @@ fn check(cfg: &EvalConfig) {
                 .collect();
             let from = cfg
                 .score_from_first_scan
-                .then(|| walk.walk.wifi.first().map(|s| s.t))
+                .then(|| walk.wifi.first().map(|s| s.t))
                 .flatten();
-            let located = score_track(&walk.walk.waypoints, &track, from);
+            let located = score_track(&walk.waypoints, &track, from);
             assert!(!located.errors.is_empty(), "{scheme}: nothing scored");
             assert_eq!(
                 located, from_eval.score,

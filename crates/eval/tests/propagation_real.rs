@@ -7,7 +7,6 @@
 mod common;
 
 use common::real_data;
-use std::sync::Arc;
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
 use wipdr_fingerprint::propagation::{PropagationConfig, extend_radio_map, fit_ap_models};
 use wipdr_fingerprint::walk_map::build_from_walks;
@@ -19,10 +18,7 @@ fn site2_f2() -> Option<FloorInput> {
     let (root, cache) = real_data()?;
     let data =
         read_floor_dir_cached(root.join("site2/F2"), &cache, &ReadOptions::default()).unwrap();
-    Some(FloorInput {
-        label: "site2/F2".into(),
-        data: Arc::new(data),
-    })
+    Some(FloorInput::new("site2/F2", data.into_floor()))
 }
 
 #[test]
@@ -34,7 +30,7 @@ fn synthesised_fingerprints_fill_walkable_gaps_only() {
         .data
         .walks
         .iter()
-        .map(|w| w.walk.meta.id.as_str())
+        .map(|w| w.meta.id.as_str())
         .collect();
     let folds = wipdr_eval::folds::folds_by_name(&ids);
     let training = floor
@@ -43,7 +39,7 @@ fn synthesised_fingerprints_fill_walkable_gaps_only() {
         .iter()
         .zip(&folds)
         .filter(|(_, f)| **f != 0)
-        .map(|(w, _)| &w.walk);
+        .map(|(w, _)| w);
     let (mut map, _) = build_from_walks(training, &Default::default()).unwrap();
     let measured: Vec<_> = map.points.iter().map(|p| p.position).collect();
     let cfg = PropagationConfig::default();

@@ -4,7 +4,6 @@
 //! API that predates run identities, so they run, and fail, on the code before it.)
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use wipdr_eval::pipeline::{EvalConfig, EvalError, FloorInput};
 use wipdr_eval::sweep::{self, SweepOptions, SweepOutcome, SweepSpec};
 
@@ -61,10 +60,7 @@ fn text(p: &Path) -> String {
 fn fewer_walks(floor: &FloorInput) -> FloorInput {
     let mut data = (*floor.data).clone();
     data.walks.pop();
-    FloorInput {
-        label: floor.label.clone(),
-        data: Arc::new(data),
-    }
+    FloorInput::new(floor.label.clone(), data)
 }
 
 #[test]
@@ -130,7 +126,7 @@ fn resume_with_other_data_is_refused() {
     assert!(msg.contains("floor \"fixture\""), "{msg}");
     let relabelled = FloorInput {
         label: "other".into(),
-        data: floor.data.clone(),
+        ..floor.clone()
     };
     let msg = run(&a, &[relabelled], &out, resume())
         .expect_err("other floors must be refused")

@@ -60,10 +60,7 @@ fn scans_before_the_first_step_on_the_real_floors() {
     };
     let data =
         read_floor_dir_cached(root.join("site1/F1"), &cache, &ReadOptions::default()).unwrap();
-    let floor = FloorInput {
-        label: "site1/F1".into(),
-        data: std::sync::Arc::new(data),
-    };
+    let floor = FloorInput::new("site1/F1", data.into_floor());
     let prepared = prepare(std::slice::from_ref(&floor), &EvalConfig::default()).unwrap();
     let mut histogram = [0usize; 4];
     let mut standing_s = Vec::new();

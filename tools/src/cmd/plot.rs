@@ -1,7 +1,7 @@
 //! `wipdr plot`: pictures of floors and walks.
 
 use crate::plotting::{self, FONT_FAMILY};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use plotters::prelude::*;
 use std::path::PathBuf;
 
@@ -40,10 +40,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn plot_floor(a: FloorArgs) -> Result<()> {
-    let floor = crate::data::load_floors(std::slice::from_ref(&a.dir))?
-        .pop()
-        .context("no floor read")?
-        .data;
+    let floor = crate::data::load_floor_data(&a.dir)?;
     plotting::ensure_parent(&a.out)?;
     let (w, h) = plotting::floor_canvas_size(floor.width, floor.height, a.size);
     let caption = format!(

@@ -221,7 +221,7 @@ pub fn run(args: Args) -> Result<()> {
             .par_iter()
             .map(|pw| {
                 let mut skips = WalkStatsSkips::default();
-                let stats = walk_ap_stats(&pw.walk.wifi, &cfg, &mut skips);
+                let stats = walk_ap_stats(&pw.wifi, &cfg, &mut skips);
                 let mut p = Points::default();
                 for s in stats {
                     p.rssi.push(s.mean_rssi_dbm);

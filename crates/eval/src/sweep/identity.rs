@@ -164,14 +164,7 @@ pub fn floor_identity(floor: &FloorInput) -> Result<FloorIdentity, SweepError> {
         .collect::<Result<_, _>>()?;
     let mut h = StableHasher::default();
     h.update_str(&floor.label);
-    let rest = (
-        d.width,
-        d.height,
-        &d.plan,
-        &d.lonlat_box,
-        d.skipped_features,
-        &d.skipped_walks,
-    );
+    let rest = (&d.name, &d.plan);
     h.update(&serialised_hash(&rest)?.to_le_bytes());
     h.update(&(walks.len() as u64).to_le_bytes());
     for w in walks {

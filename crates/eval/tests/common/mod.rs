@@ -3,7 +3,6 @@
 #![allow(dead_code)]
 
 use std::path::PathBuf;
-use std::sync::Arc;
 use wipdr_eval::pipeline::FloorInput;
 use wipdr_io::floor::{ReadOptions, read_floor_dir};
 
@@ -17,10 +16,7 @@ pub fn fixture_floor() -> FloorInput {
         .collect();
     dirs.sort();
     let data = read_floor_dir(&dirs[0], &ReadOptions::default()).expect("fixture floor reads");
-    FloorInput {
-        label: "fixture".into(),
-        data: Arc::new(data),
-    }
+    FloorInput::new("fixture", data.into_floor())
 }
 
 /// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
