@@ -21,7 +21,7 @@ use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObse
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::trails::TrailRaster;
-use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, fit_step_length};
+use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps};
 use wipdr_pdr::{Pdr, PdrConfig};
 use wipdr_positioning::{
     FusionStage, PositionEstimate, Positioner, Site, samples_of, stream_seed, track_of,
@@ -189,14 +189,7 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
             waypoints: &w.waypoints,
         })
         .collect();
-    let mut out = *base;
-    out.step_length = fit_step_length(base.step_length, &walks, cal);
-    if cal.fit_heading_offset
-        && let Some(off) = fit_heading_offset(&out.step_length, base.heading.source, &walks, cal)
-    {
-        out.heading.map_offset_rad = base.heading.map_offset_rad + off;
-    }
-    out
+    crate::pdr_protocol::calibrate_steps(base, cal, &walks)
 }
 
 /// Turns every walk of `floors` into scheme inputs under the protocol folds.
