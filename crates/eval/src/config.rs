@@ -317,6 +317,10 @@ mod tests {
                 "[radio_map.radio]\nnot_heard_dbm = 50.0",
                 "radio_map.radio.not_heard_dbm",
             ),
+            (
+                "[radio_map.radio]\nnot_heard_dbm = nan",
+                "radio_map.radio.not_heard_dbm",
+            ),
             ("[matcher]\nkind = \"med\"\nwindow = 0", "matcher.window"),
             (
                 "[schemes.pf]\nscheme = \"pf\"\nn_particles = 1000000000",

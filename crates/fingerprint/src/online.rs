@@ -331,11 +331,11 @@ impl MatcherConfig {
     pub fn build(&self, map: Arc<RadioMap>) -> Result<MatcherModel, FingerprintError> {
         self.validate()?;
         if self.k() > map.len() {
-            tracing::warn!(
-                k = self.k(),
-                map_points = map.len(),
-                "matcher.k is larger than the radio map: every point is a candidate"
-            );
+            return Err(FingerprintError::InvalidConfig(format!(
+                "matcher.k: {} neighbours asked of a radio map of {} reference points (lower k)",
+                self.k(),
+                map.len()
+            )));
         }
         let inner = match self {
             Self::Wknn(c) => Model::Stateless(
@@ -465,6 +465,31 @@ mod tests {
             k.k = 0;
         }
         assert!(c.validate().unwrap_err().to_string().contains("matcher.k"));
+    }
+
+    #[test]
+    fn k_larger_than_the_map_is_an_error_not_a_clamp() {
+        let map = Arc::new(
+            RadioMap::from_records(
+                [(
+                    wipdr_core::Point2::new(0.0, 0.0),
+                    vec![(wipdr_core::Bssid(1), -50.0)],
+                )],
+                crate::RadioMapConfig::default(),
+            )
+            .unwrap(),
+        );
+        for kind in MATCHER_KINDS {
+            let e = MatcherConfig::defaults_for(kind)
+                .unwrap()
+                .build(map.clone())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("matcher.k") && e.contains("1 reference points"),
+                "{kind}: {e}"
+            );
+        }
     }
 
     #[test]
