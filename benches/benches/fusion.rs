@@ -124,7 +124,7 @@ fn real_walk() -> Option<RealWalk> {
         .map(|(_, w)| &w.walk);
     let cfg = walk_map::WalkMapConfig::default();
     let (map, _) = walk_map::build_from_walks(train, &cfg).ok()?;
-    let coverage = map.points.iter().map(|p| p.position).collect();
+    let coverage = map.points().iter().map(|p| p.position).collect();
     let matcher = KnnMatcher::new(map, KnnConfig::default()).ok()?;
     let query = QueryFilter {
         max_age_ms: cfg.max_entry_age_ms,

@@ -132,7 +132,7 @@ fn run_config(
         cfg.exponent_range[0]
     );
     let heard_per_point: Vec<f64> = (0..map.len())
-        .filter(|&i| map.points[i].scans > 0)
+        .filter(|&i| map.point(i).scans > 0)
         .map(|i| map.heard(i).count() as f64)
         .collect();
     let typical = median(heard_per_point);
@@ -147,9 +147,7 @@ fn run_config(
         report.entries_added as f64 / report.points_added.max(1) as f64
     );
 
-    let measured: Vec<usize> = (0..map.len())
-        .filter(|&i| map.points[i].scans > 0)
-        .collect();
+    let measured: Vec<usize> = (0..map.len()).filter(|&i| map.point(i).scans > 0).collect();
     let every_fifth: Vec<usize> = measured.iter().copied().filter(|i| i % 5 == 4).collect();
     let capped = PropagationConfig {
         max_aps: Some(typical as usize),
@@ -166,12 +164,12 @@ fn run_config(
         report.entries_added as f64 / report.points_added.max(1) as f64
     );
     leave_out(map, cfg, "every 5th point", &every_fifth);
-    let xs: Vec<f64> = measured.iter().map(|&i| map.points[i].position.x).collect();
+    let xs: Vec<f64> = measured.iter().map(|&i| map.point(i).position.x).collect();
     let mid = median(xs);
     let band: Vec<usize> = measured
         .iter()
         .copied()
-        .filter(|&i| (map.points[i].position.x - mid).abs() <= 10.0)
+        .filter(|&i| (map.point(i).position.x - mid).abs() <= 10.0)
         .collect();
     leave_out(map, cfg, &format!("band |x - {mid:.0}| <= 10 m"), &band);
     Ok(())
@@ -182,7 +180,7 @@ const BINS: [f64; 4] = [3.0, 8.0, 14.0, 20.0];
 fn leave_out(map: &RadioMap, cfg: &PropagationConfig, what: &str, held: &[usize]) {
     let held_set: std::collections::HashSet<usize> = held.iter().copied().collect();
     let kept: Vec<usize> = (0..map.len())
-        .filter(|&i| map.points[i].scans > 0 && !held_set.contains(&i))
+        .filter(|&i| map.point(i).scans > 0 && !held_set.contains(&i))
         .collect();
     let sub = map.subset(&kept);
     let models = match fit_ap_models_with_report(&sub, cfg) {
@@ -196,14 +194,14 @@ fn leave_out(map: &RadioMap, cfg: &PropagationConfig, what: &str, held: &[usize]
     let mut hearing: Vec<Vec<(Point2, f32)>> = vec![Vec::new(); map.n_aps()];
     for i in 0..sub.len() {
         for (j, v) in sub.heard(i) {
-            hearing[j].push((sub.points[i].position, v));
+            hearing[j].push((sub.point(i).position, v));
         }
     }
     // (model abs error, baseline abs error) per distance bin; plus untrusted entries.
     let mut bins: Vec<(f64, f64, usize)> = vec![(0.0, 0.0, 0); BINS.len()];
     let (mut no_model, mut untrusted, mut total) = (0usize, 0usize, 0usize);
     for &i in held {
-        let p = map.points[i].position;
+        let p = map.point(i).position;
         for (j, v) in map.heard(i) {
             total += 1;
             let Some(model) = &models[j] else {
@@ -249,7 +247,7 @@ fn leave_out(map: &RadioMap, cfg: &PropagationConfig, what: &str, held: &[usize]
     for threshold in [-90.0, -85.0, -80.0] {
         let (mut predicted, mut both, mut actual) = (0usize, 0usize, 0usize);
         for &i in held {
-            let p = map.points[i].position;
+            let p = map.point(i).position;
             for (j, model) in models.iter().enumerate() {
                 let Some(model) = model else { continue };
                 let trusted = hearing[j]
@@ -281,7 +279,7 @@ fn leave_out(map: &RadioMap, cfg: &PropagationConfig, what: &str, held: &[usize]
     let k = counts.get(counts.len() / 2).copied().unwrap_or(0);
     let (mut predicted, mut both, mut actual) = (0usize, 0usize, 0usize);
     for &i in held {
-        let p = map.points[i].position;
+        let p = map.point(i).position;
         let mut pred: Vec<(usize, f64)> = models
             .iter()
             .enumerate()

@@ -201,10 +201,10 @@ fn accumulate(
                     obs.candidates
                         .iter()
                         .take(votes.max(1))
-                        .map(|c| map.points[c.index].floor),
+                        .map(|c| map.point(c.index).floor),
                 );
                 obs.candidates
-                    .retain(|c| floor.is_none() || map.points[c.index].floor == floor);
+                    .retain(|c| floor.is_none() || map.point(c.index).floor == floor);
                 if obs.candidates.len() < grid.k_max && fetch < map.len() {
                     short += 1;
                 }
@@ -234,10 +234,10 @@ fn accumulate(
                     let weights = weights_of(&nb, weighting);
                     let mut est = Point2::origin();
                     for (&(i, _), wt) in nb.iter().zip(&weights) {
-                        est.x += wt * map.points[i].position.x;
-                        est.y += wt * map.points[i].position.y;
+                        est.x += wt * map.point(i).position.x;
+                        est.y += wt * map.point(i).position.y;
                     }
-                    let floor = majority(nb.iter().map(|&(i, _)| map.points[i].floor));
+                    let floor = majority(nb.iter().map(|&(i, _)| map.point(i).floor));
                     let (a, b) = errors(est, floor, t);
                     e[0] += a;
                     e[1] += b;
@@ -316,7 +316,7 @@ pub fn grid_cross_validated(
     let n = train.len();
     let mut groups: HashMap<(i64, i64, Option<i32>), usize> = HashMap::new();
     let mut fold_of = Vec::with_capacity(n);
-    for p in &train.points {
+    for p in train.points() {
         let key = (
             (p.position.x * 100.0).round() as i64,
             (p.position.y * 100.0).round() as i64,
@@ -350,8 +350,8 @@ pub fn grid_cross_validated(
                 stats: Default::default(),
             });
             truth.push(Truth {
-                position: train.points[i].position,
-                floor: train.points[i].floor,
+                position: train.point(i).position,
+                floor: train.point(i).floor,
             });
         }
         accumulate(&map, &queries, &truth, grid, &mut acc)?;

@@ -63,7 +63,7 @@ impl FoldModel {
             build_from_walks(training.iter().copied(), &cfg.radio_map).map_err(fp_err)?;
         tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
         let mut coverage: Arc<Vec<Point2>> =
-            Arc::new(map.points.iter().map(|p| p.position).collect());
+            Arc::new(map.points().iter().map(|p| p.position).collect());
         if let Some(prop) = &cfg.propagation {
             let models = fit_ap_models(&map, prop).map_err(fp_err)?;
             let plan = &floor.data.plan;
@@ -73,7 +73,7 @@ impl FoldModel {
             .map_err(fp_err)?;
             tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
             if cfg.propagation_is_coverage {
-                coverage = Arc::new(map.points.iter().map(|p| p.position).collect());
+                coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
             }
         }
         let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));

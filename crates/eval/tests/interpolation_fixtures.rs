@@ -62,7 +62,7 @@ fn interpolated_fixture_map_keeps_its_promises() {
         ..Default::default()
     };
     let (dense, rep) = build_from_walks(train, &cfg).unwrap();
-    let measured: Vec<_> = dense.points.iter().filter(|p| p.scans > 0).collect();
+    let measured: Vec<_> = dense.points().iter().filter(|p| p.scans > 0).collect();
     assert_eq!(measured.len(), plain.len());
     let made = dense.len() - plain.len();
     assert_eq!(
@@ -75,7 +75,7 @@ fn interpolated_fixture_map_keeps_its_promises() {
     // every heard value is a valid RSSI with count 1.
     let bound = spatial.radius_m.max(along.max_gap_m / 2.0) + 1e-9;
     for (i, p) in dense
-        .points
+        .points()
         .iter()
         .enumerate()
         .filter(|(_, p)| p.scans == 0)

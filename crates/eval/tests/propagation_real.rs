@@ -41,14 +41,14 @@ fn synthesised_fingerprints_fill_walkable_gaps_only() {
         .filter(|(_, f)| **f != 0)
         .map(|(w, _)| w);
     let (mut map, _) = build_from_walks(training, &Default::default()).unwrap();
-    let measured: Vec<_> = map.points.iter().map(|p| p.position).collect();
+    let measured: Vec<_> = map.points().iter().map(|p| p.position).collect();
     let cfg = PropagationConfig::default();
     let models = fit_ap_models(&map, &cfg).unwrap();
     let plan = &floor.data.plan;
     let report = extend_radio_map(&mut map, &models, &cfg, |p| plan.is_walkable(p)).unwrap();
     assert!(report.points_added > 20, "{report:?}");
     assert_eq!(map.len(), measured.len() + report.points_added);
-    for (i, p) in map.points.iter().enumerate().skip(measured.len()) {
+    for (i, p) in map.points().iter().enumerate().skip(measured.len()) {
         assert_eq!(p.scans, 0);
         assert!(plan.is_walkable(p.position), "{:?}", p.position);
         let nearest = measured

@@ -31,7 +31,7 @@ fn score(
     assert!(report.scans_used <= report.scans);
     let n = map.len() as f64;
     let centroid = map
-        .points
+        .points()
         .iter()
         .fold(wipdr_core::Point2::origin(), |c, p| {
             c + p.position.coords / n

@@ -292,7 +292,7 @@ impl ClusterSearchMatcher {
             ));
         }
         let mut groups: BTreeMap<(Option<i32>, Option<i32>), Vec<usize>> = BTreeMap::new();
-        for (i, p) in map.points.iter().enumerate() {
+        for (i, p) in map.points().iter().enumerate() {
             groups.entry((p.building, p.floor)).or_default().push(i);
         }
         let mut clusters = Vec::new();

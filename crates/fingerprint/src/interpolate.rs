@@ -566,13 +566,11 @@ pub fn spatial(
 /// The measured reference points of a map (`scans > 0`) in sparse form, with their row
 /// indices. Interpolated points (`scans == 0`) are left out.
 pub fn measured_prints(map: &RadioMap) -> (Vec<SparsePrint>, Vec<usize>) {
-    let rows: Vec<usize> = (0..map.len())
-        .filter(|&i| map.points[i].scans > 0)
-        .collect();
+    let rows: Vec<usize> = (0..map.len()).filter(|&i| map.point(i).scans > 0).collect();
     let prints = rows
         .iter()
         .map(|&i| SparsePrint {
-            position: map.points[i].position,
+            position: map.point(i).position,
             rss: map.heard(i).collect(),
         })
         .collect();
@@ -624,7 +622,7 @@ pub fn densify_spatially(
 ) -> Result<InterpolationReport, FingerprintError> {
     let (sources, rows) = measured_prints(map);
     let (made, report) = spatial(&sources, cfg)?;
-    let points = map.points.clone();
+    let points = map.points().to_vec();
     push_interpolated(map, &made, |k| points[rows[k]])?;
     tracing::debug!(?report, "spatial radio-map interpolation");
     Ok(report)
@@ -876,7 +874,7 @@ mod tests {
         let rep = densify_spatially(&mut map, &cfg).unwrap();
         assert_eq!(rep.spatial_points, 1);
         assert_eq!(map.len(), 3);
-        let p = map.points[2];
+        let p = map.points()[2];
         assert_eq!(p.scans, 0);
         assert_eq!(p.floor, Some(2));
         assert_eq!(p.position, Point2::new(2.0, 0.0));

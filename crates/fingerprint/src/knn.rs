@@ -630,9 +630,9 @@ impl Matcher for FloorFirstMatcher {
         let mut keys = vec![0f32; m.map.len()];
         m.distances_into(&q, &mut keys);
         let voters = top_k(&keys, self.votes);
-        let floor = majority(voters.iter().map(|&(i, _)| m.map.points[i].floor));
+        let floor = majority(voters.iter().map(|&(i, _)| m.map.point(i).floor));
         if floor.is_some() {
-            for (key, p) in keys.iter_mut().zip(&m.map.points) {
+            for (key, p) in keys.iter_mut().zip(m.map.points()) {
                 if p.floor != floor {
                     *key = f32::INFINITY;
                 }
@@ -945,7 +945,7 @@ mod tests {
         let obs = m.locate(&q).unwrap();
         assert_eq!(obs.candidates[0].index, 17);
         assert_eq!(obs.candidates[0].distance, 0.0);
-        assert_eq!(obs.estimate, m.map().points[17].position);
+        assert_eq!(obs.estimate, m.map().point(17).position);
         assert_eq!(obs.visited, 40);
     }
 
@@ -1035,10 +1035,10 @@ mod tests {
             let d = m.distances(&q).unwrap();
             let mut order: Vec<usize> = (0..90).collect();
             order.sort_by(|&a, &b| d[a].total_cmp(&d[b]).then(a.cmp(&b)));
-            let floor = majority(order.iter().take(7).map(|&i| map.points[i].floor));
+            let floor = majority(order.iter().take(7).map(|&i| map.point(i).floor));
             let want: Vec<usize> = order
                 .into_iter()
-                .filter(|&i| map.points[i].floor == floor)
+                .filter(|&i| map.point(i).floor == floor)
                 .take(4)
                 .collect();
             let obs = ff.locate(&q).unwrap();
@@ -1069,7 +1069,7 @@ mod tests {
         let map = random_map(1, 5, 3);
         assert!(KnnMatcher::new(map.clone(), KnnConfig::knn(0)).is_err());
         assert!(KnnMatcher::new(map.clone(), KnnConfig::wknn(3, f64::NAN)).is_err());
-        let empty = RadioMap::new(map.vocabulary.clone(), RadioMapConfig::default());
+        let empty = RadioMap::new(map.vocabulary().clone(), RadioMapConfig::default());
         assert!(matches!(
             KnnMatcher::new(empty, KnnConfig::nn()),
             Err(FingerprintError::EmptyMap)

@@ -106,7 +106,7 @@ pub fn observation_from_neighbours(
     let mut estimate = Point2::origin();
     let mut candidates = Vec::with_capacity(neighbours.len());
     for (&(index, distance), &w) in neighbours.iter().zip(&weights) {
-        let p = map.points[index].position;
+        let p = map.point(index).position;
         estimate.x += w * p.x;
         estimate.y += w * p.y;
         candidates.push(Candidate {
@@ -116,8 +116,8 @@ pub fn observation_from_neighbours(
             index,
         });
     }
-    let floor = majority(neighbours.iter().map(|&(i, _)| map.points[i].floor));
-    let building = majority(neighbours.iter().map(|&(i, _)| map.points[i].building));
+    let floor = majority(neighbours.iter().map(|&(i, _)| map.point(i).floor));
+    let building = majority(neighbours.iter().map(|&(i, _)| map.point(i).building));
     Ok(WifiObservation {
         t: query.t,
         estimate,

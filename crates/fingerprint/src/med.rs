@@ -202,10 +202,10 @@ impl MedMatcher {
 
     /// Index of the reference point nearest to `p` on the same building/floor as `like`.
     fn nearest_point(&self, p: Point2, like: usize) -> usize {
-        let (b, f) = (self.map.points[like].building, self.map.points[like].floor);
+        let (b, f) = (self.map.point(like).building, self.map.point(like).floor);
         let mut best = like;
         let mut best_d = f64::INFINITY;
-        for (i, rp) in self.map.points.iter().enumerate() {
+        for (i, rp) in self.map.points().iter().enumerate() {
             if rp.building == b && rp.floor == f {
                 let d = (rp.position - p).norm_squared();
                 if d < best_d {
@@ -232,7 +232,7 @@ impl MedMatcher {
         (0..self.map.len())
             .into_par_iter()
             .map(|c| {
-                let pc = self.map.points[c].position;
+                let pc = self.map.point(c).position;
                 let mut sum = Self::squared_term(current, &self.map, c);
                 for past in &self.history {
                     let j = self.nearest_point(pc - past.since, c);

@@ -117,7 +117,7 @@ impl OwnedFingerprints {
         Self {
             rss,
             n_aps: map.n_aps(),
-            positions: indices.iter().map(|&i| map.points[i].position).collect(),
+            positions: indices.iter().map(|&i| map.point(i).position).collect(),
             not_heard: map.not_heard_dbm(),
         }
     }

@@ -99,7 +99,7 @@ impl Query {
                 stats.below_threshold += 1;
                 continue;
             }
-            match map.vocabulary.column_of_bssid(e.bssid) {
+            match map.vocabulary().column_of_bssid(e.bssid) {
                 Some(j) => kept.push((j as u32, e.rssi_dbm as f32, e.last_seen_ms)),
                 None => stats.unknown_aps += 1,
             }
@@ -141,7 +141,7 @@ impl Query {
             if !is_valid_rssi(vf) {
                 if filter.strict {
                     return Err(FingerprintError::InvalidRssi {
-                        ap: map.vocabulary.name(j).to_string(),
+                        ap: map.vocabulary().name(j).to_string(),
                         value: vf,
                     });
                 }

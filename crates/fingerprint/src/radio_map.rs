@@ -180,10 +180,10 @@ pub struct ReferencePoint {
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RadioMap {
-    /// The AP columns.
-    pub vocabulary: ApVocabulary,
-    /// The reference points, one per row.
-    pub points: Vec<ReferencePoint>,
+    /// The AP columns (`n_aps()` of them).
+    vocabulary: ApVocabulary,
+    /// The reference points, one per row of the parallel arrays below.
+    points: Vec<ReferencePoint>,
     config: RadioMapConfig,
     mean_dbm: Vec<f32>,
     counts: Vec<u16>,
@@ -296,6 +296,34 @@ impl RadioMap {
     /// Whether the map has no reference points.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
+    }
+
+    /// The reference points, one per row, in the order they were pushed.
+    ///
+    /// ```
+    /// use wipdr_core::{Bssid, Point2};
+    /// use wipdr_fingerprint::{RadioMap, RadioMapConfig};
+    /// let map = RadioMap::from_records(
+    ///     [(Point2::new(0.0, 0.0), vec![(Bssid(7), -50.0)]),
+    ///      (Point2::new(5.0, 0.0), vec![(Bssid(7), -70.0)])],
+    ///     RadioMapConfig::default(),
+    /// ).unwrap();
+    /// let xs: Vec<f64> = map.points().iter().map(|p| p.position.x).collect();
+    /// assert_eq!(xs, [0.0, 5.0]);
+    /// assert_eq!(map.points().len(), map.len());
+    /// ```
+    pub fn points(&self) -> &[ReferencePoint] {
+        &self.points
+    }
+
+    /// Reference point `i`. Panics if `i >= len()`, like slice indexing.
+    pub fn point(&self, i: usize) -> &ReferencePoint {
+        &self.points[i]
+    }
+
+    /// The AP columns.
+    pub fn vocabulary(&self) -> &ApVocabulary {
+        &self.vocabulary
     }
 
     /// Number of AP columns.
@@ -469,6 +497,76 @@ mod tests {
         q.position.x = f64::INFINITY;
         assert!(map.push_point(q, &[None, None], None).is_err());
         assert_eq!(map.len(), 1);
+    }
+
+    /// Every view of the map agrees with the private parallel arrays: one row of `n_aps()`
+    /// entries per point, and `rss`/`count`/`heard`/`filled_row` telling the same story.
+    fn assert_invariants(map: &RadioMap) {
+        let m = map.n_aps();
+        assert_eq!(map.points().len(), map.len());
+        assert_eq!(map.vocabulary().len(), m);
+        assert_eq!(map.filled_matrix().len(), map.len() * m);
+        assert_eq!(map.counts.len(), map.len() * m);
+        assert_eq!(map.spread_db.len(), map.len() * m);
+        for i in 0..map.len() {
+            assert_eq!(map.point(i), &map.points()[i]);
+            let row = map.filled_row(i);
+            assert_eq!(row.len(), m);
+            for (j, &v) in row.iter().enumerate() {
+                match map.rss(i, j) {
+                    Some(r) => {
+                        assert!(map.count(i, j) > 0);
+                        assert_eq!(r.to_bits(), v.to_bits());
+                    }
+                    None => {
+                        assert_eq!(map.count(i, j), 0);
+                        assert_eq!(map.spread(i, j), 0.0);
+                        assert_eq!(v, map.not_heard_dbm());
+                    }
+                }
+            }
+            let heard: Vec<(usize, f32)> = (0..m)
+                .filter_map(|j| map.rss(i, j).map(|r| (j, r)))
+                .collect();
+            assert_eq!(map.heard(i).collect::<Vec<_>>(), heard);
+        }
+    }
+
+    #[test]
+    fn a_map_from_records_keeps_its_invariants() {
+        let mut map = RadioMap::from_records(
+            [
+                (Point2::new(0.0, 0.0), vec![(Bssid(7), -50.0)]),
+                (
+                    Point2::new(5.0, 0.0),
+                    vec![(Bssid(9), -60.0), (Bssid(7), -70.0)],
+                ),
+                (Point2::new(5.0, 4.0), vec![]),
+                (
+                    Point2::new(1.0, 4.0),
+                    vec![(Bssid(3), -80.0), (Bssid(3), -90.0)],
+                ),
+            ],
+            RadioMapConfig::default(),
+        )
+        .unwrap();
+        assert_eq!((map.len(), map.n_aps()), (4, 3));
+        assert_invariants(&map);
+        let xs: Vec<f64> = map.points().iter().map(|p| p.position.x).collect();
+        assert_eq!(xs, [0.0, 5.0, 5.0, 1.0]);
+        let col = |b| map.vocabulary().column_of_bssid(Bssid(b)).unwrap();
+        let (c3, c7, c9) = (col(3), col(7), col(9));
+        assert_eq!(map.rss(0, c7), Some(-50.0));
+        assert_eq!(map.rss(1, c7), Some(-70.0));
+        assert_eq!(map.rss(1, c9), Some(-60.0));
+        assert_eq!(map.rss(3, c3), Some(-85.0));
+        assert_eq!(map.heard(2).count(), 0);
+        assert_invariants(&map.subset(&[3, 1]));
+        assert_eq!(map.subset(&[3, 1]).point(0), map.point(3));
+        map.set_not_heard_dbm(-100.0).unwrap();
+        assert_invariants(&map);
+        let back = RadioMap::from_bincode(&map.to_bincode().unwrap()).unwrap();
+        assert_invariants(&back);
     }
 
     #[test]

@@ -119,7 +119,7 @@ mod tests {
             RadioMapConfig::default(),
         )
         .unwrap();
-        assert_eq!(map.vocabulary.bssid(0), Some(Bssid(3)));
+        assert_eq!(map.vocabulary().bssid(0), Some(Bssid(3)));
         assert_eq!(map.rss(0, 1), Some(-60.0));
         assert_eq!(map.rss(0, 0), Some(-60.0));
     }

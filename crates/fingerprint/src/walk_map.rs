@@ -188,7 +188,7 @@ where
     let vocabulary = ApVocabulary::from_bssids(bssids);
     let m = vocabulary.len();
     let mut map = RadioMap::new(vocabulary, config.radio);
-    let column = |b: Bssid, map: &RadioMap| map.vocabulary.column_of_bssid(b).unwrap_or(0);
+    let column = |b: Bssid, map: &RadioMap| map.vocabulary().column_of_bssid(b).unwrap_or(0);
     match config.grid_cell_m {
         None => {
             let mut row = vec![None; m];
@@ -300,7 +300,7 @@ fn sparse_print(f: &Fingerprint, map: &RadioMap) -> crate::interpolate::SparsePr
     let mut rss: Vec<(usize, f32)> = f
         .entries
         .iter()
-        .filter_map(|&(b, r)| map.vocabulary.column_of_bssid(b).map(|j| (j, r)))
+        .filter_map(|&(b, r)| map.vocabulary().column_of_bssid(b).map(|j| (j, r)))
         .collect();
     rss.sort_unstable_by_key(|e| e.0);
     rss.dedup_by_key(|e| e.0);
@@ -373,8 +373,8 @@ mod tests {
         assert_eq!(rep.entries_stale, 1);
         assert_eq!(rep.entries_invalid, 1);
         assert_eq!(rep.scans_unlabelled, 1);
-        assert!((map.points[0].position.x - 2.0).abs() < 1e-9);
-        assert!((map.points[1].position.x - 2.5).abs() < 1e-9);
+        assert!((map.point(0).position.x - 2.0).abs() < 1e-9);
+        assert!((map.point(1).position.x - 2.5).abs() < 1e-9);
         // AP 2 was only heard stale: still in the vocabulary? No: only kept entries count.
         assert_eq!(map.n_aps(), 1);
         let cfg = WalkMapConfig {
@@ -397,7 +397,7 @@ mod tests {
         assert_eq!(map.rss(0, 0), Some(-52.0));
         assert_eq!(map.count(0, 0), 2);
         assert!((map.spread(0, 0) - 2.0).abs() < 1e-6);
-        assert_eq!(map.points[0].scans, 2);
+        assert_eq!(map.point(0).scans, 2);
         let bad = WalkMapConfig {
             grid_cell_m: Some(0.0),
             ..Default::default()
@@ -435,9 +435,9 @@ mod tests {
         assert_eq!(map.len(), 5);
         assert_eq!(rep.reference_points, 5);
         assert_eq!(rep.interpolation.along_walk_points, 3);
-        let col = map.vocabulary.column_of_bssid(Bssid(1)).unwrap();
+        let col = map.vocabulary().column_of_bssid(Bssid(1)).unwrap();
         for (i, x) in [(2, 3.0), (3, 4.0), (4, 5.0)] {
-            let p = map.points[i];
+            let p = map.points()[i];
             assert_eq!(p.scans, 0);
             assert_eq!(p.floor, Some(4));
             assert!((p.position.x - x).abs() < 1e-9);
@@ -445,7 +445,7 @@ mod tests {
             assert!((map.rss(i, col).unwrap() - want).abs() < 1e-4);
             assert_eq!(map.heard(i).count(), 1);
         }
-        assert!(map.points[..2].iter().all(|p| p.scans == 1));
+        assert!(map.points()[..2].iter().all(|p| p.scans == 1));
 
         let spatial = WalkMapConfig {
             interpolation: Some(InterpolationConfig {
@@ -462,7 +462,7 @@ mod tests {
         let (map, rep) = build_from_walks([&w], &spatial).unwrap();
         assert_eq!(rep.interpolation.spatial_points, map.len() - 2);
         assert!(map.len() > 2);
-        for p in &map.points[2..] {
+        for p in &map.points()[2..] {
             assert_eq!(p.scans, 0);
             let near = [2.0, 6.0]
                 .iter()

@@ -27,7 +27,7 @@ impl Site {
     /// walkable raster) and the radio map's coverage.
     pub fn new(plan: Option<&FloorPlan>, map: &RadioMap) -> Self {
         let mut site = Self::from_plan(plan);
-        site.coverage = Some(Arc::new(map.points.iter().map(|p| p.position).collect()));
+        site.coverage = Some(Arc::new(map.points().iter().map(|p| p.position).collect()));
         site
     }
 

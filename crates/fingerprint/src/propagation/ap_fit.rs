@@ -38,8 +38,8 @@ pub fn fit_ap_models_with_report(
     let samples = samples_per_ap(map);
     let measured: Vec<usize> = (0..map.len())
         .filter(|&i| {
-            let p = map.points[i].position;
-            map.points[i].scans > 0 && p.x.is_finite() && p.y.is_finite()
+            let p = map.point(i).position;
+            map.point(i).scans > 0 && p.x.is_finite() && p.y.is_finite()
         })
         .collect();
     enum Outcome {
@@ -66,7 +66,7 @@ pub fn fit_ap_models_with_report(
                 measured
                     .iter()
                     .filter(|&&i| map.rss(i, j).is_none())
-                    .map(|&i| map.points[i].position)
+                    .map(|&i| map.point(i).position)
                     .filter(|p| {
                         p.x >= lo.x - r && p.x <= hi.x + r && p.y >= lo.y - r && p.y <= hi.y + r
                     })
@@ -124,7 +124,7 @@ pub fn fit_ap_models_with_report(
 /// Per AP column, `(position, dBm)` of the measured points that heard it (finite only).
 pub(super) fn samples_per_ap(map: &RadioMap) -> Vec<Vec<(Point2, f64)>> {
     let mut out = vec![Vec::new(); map.n_aps()];
-    for (i, point) in map.points.iter().enumerate() {
+    for (i, point) in map.points().iter().enumerate() {
         let p = point.position;
         if point.scans == 0 || !(p.x.is_finite() && p.y.is_finite()) {
             continue;

@@ -31,7 +31,7 @@ pub struct PropagationReport {
 /// Appends synthesised reference points in the coverage gaps of `map` (see the module doc)
 /// and returns what it did. `models` has one entry per AP column (from [`fit_ap_models`]);
 /// `allowed(p)` says where a point may go (e.g. the floor plan's walkability). New points
-/// are appended at the end of `map.points`, so indices `>=` the length before the call are
+/// are appended at the end of `map.points()`, so indices `>=` the length before the call are
 /// the synthesised ones. A map without measured points is left as it is.
 pub fn extend_radio_map(
     map: &mut RadioMap,
@@ -53,7 +53,7 @@ pub fn extend_radio_map(
     {
         return Err(FingerprintError::InvalidInput(format!(
             "path-loss model of AP {} is not finite",
-            map.vocabulary.name(j)
+            map.vocabulary().name(j)
         )));
     }
     let mut report = PropagationReport {
@@ -63,15 +63,15 @@ pub fn extend_radio_map(
     };
     let measured: Vec<usize> = (0..map.len())
         .filter(|&i| {
-            let p = map.points[i].position;
-            map.points[i].scans > 0 && p.x.is_finite() && p.y.is_finite()
+            let p = map.point(i).position;
+            map.point(i).scans > 0 && p.x.is_finite() && p.y.is_finite()
         })
         .collect();
     if measured.is_empty() {
         tracing::debug!("no measured reference point: nothing to extend");
         return Ok(report);
     }
-    let (lo, hi) = bbox(measured.iter().map(|&i| map.points[i].position));
+    let (lo, hi) = bbox(measured.iter().map(|&i| map.point(i).position));
     let c = cfg.cell_m;
     let (i0, i1) = (
         ((lo.x - cfg.margin_m) / c).floor(),
@@ -97,7 +97,7 @@ pub fn extend_radio_map(
         Point2::new(i as f64 * c, j as f64 * c)
     };
     // Nearest measured point of each lattice point, by buckets of side `bucket`.
-    let positions: Vec<Point2> = measured.iter().map(|&i| map.points[i].position).collect();
+    let positions: Vec<Point2> = measured.iter().map(|&i| map.point(i).position).collect();
     let grid = Buckets::new(&positions, cfg.min_gap_m.max(c));
     #[derive(Clone, Copy)]
     enum Cell {
@@ -204,7 +204,7 @@ pub fn extend_radio_map(
         let point = ReferencePoint {
             position: cell_position(k),
             scans: 0,
-            ..map.points[measured[nearest]]
+            ..map.points()[measured[nearest]]
         };
         map.push_point(point, &mean, Some((&counts, &spread)))?;
         report.points_added += 1;

@@ -120,8 +120,8 @@
 //! let report = extend_radio_map(&mut map, &models, &cfg, |p| p.y >= 0.0 && p.y <= 8.0).unwrap();
 //! assert!(report.points_added > 0);
 //! // A synthesised point in the gap (x = 24 m) reads what the model says.
-//! let i = (before..map.len()).find(|&i| map.points[i].position == Point2::new(24.0, 3.0)).unwrap();
-//! assert_eq!(map.points[i].scans, 0);
+//! let i = (before..map.len()).find(|&i| map.point(i).position == Point2::new(24.0, 3.0)).unwrap();
+//! assert_eq!(map.point(i).scans, 0);
 //! for (j, m) in truth.iter().enumerate() {
 //!     let got = f64::from(map.rss(i, j).unwrap());
 //!     assert!((got - m.predict(Point2::new(24.0, 3.0))).abs() < 0.5);

@@ -270,7 +270,7 @@ fn extension_fills_gaps_only_where_allowed() {
     let models = fit_ap_models(&map, &cfg).unwrap();
     assert!(models.iter().all(Option::is_some));
     let before = map.len();
-    let measured: Vec<Point2> = map.points.iter().map(|p| p.position).collect();
+    let measured: Vec<Point2> = map.points().iter().map(|p| p.position).collect();
     let allowed = |p: Point2| (-3.0..=12.0).contains(&p.y) && !(30.0..36.0).contains(&p.x);
     let report = extend_radio_map(&mut map, &models, &cfg, allowed).unwrap();
     assert!(report.points_added > 0);
@@ -284,7 +284,7 @@ fn extension_fills_gaps_only_where_allowed() {
     );
     let mut entries = 0;
     for i in before..map.len() {
-        let pt = map.points[i];
+        let pt = map.points()[i];
         let p = pt.position;
         assert_eq!(pt.scans, 0);
         assert_eq!((pt.floor, pt.z), (Some(2), Some(1.5)));
@@ -308,21 +308,21 @@ fn extension_fills_gaps_only_where_allowed() {
             // Only within max_extrapolation_m of a measured point that heard the AP.
             let near = (0..before)
                 .filter(|&k| map.rss(k, j).is_some())
-                .any(|k| (map.points[k].position - p).norm() <= cfg.max_extrapolation_m);
+                .any(|k| (map.point(k).position - p).norm() <= cfg.max_extrapolation_m);
             assert!(near, "AP {j} at {p:?}");
         }
     }
     assert_eq!(entries, report.entries_added);
     // The gap's middle is covered, the forbidden band is not.
     assert!(
-        map.points[before..]
+        map.points()[before..]
             .iter()
             .any(|p| p.position == Point2::new(27.0, 3.0))
     );
     assert!(report.points_not_allowed > 0);
     // AP 4 is only heard on the left: never on the far side of the gap.
     for i in before..map.len() {
-        if map.points[i].position.x > 12.0 + cfg.max_extrapolation_m {
+        if map.point(i).position.x > 12.0 + cfg.max_extrapolation_m {
             assert_eq!(map.rss(i, 4), None);
         }
     }
@@ -358,7 +358,7 @@ fn extension_caps_the_heard_aps_to_the_strongest() {
                 assert!(v <= weakest_kept, "dropped AP {j} ({v}) over a kept one");
             }
         }
-        let p = capped.points[i].position;
+        let p = capped.point(i).position;
         assert!(
             kept.iter()
                 .all(|&(j, v)| (f64::from(v) - truth[j].predict(p).min(0.0)).abs() < 0.05)
