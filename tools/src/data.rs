@@ -118,7 +118,7 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
 /// progress bar over the walks read from source; skipped walks are reported.
 pub fn load_floor_data(dir: &Path) -> Result<FloorData> {
     let settings = cache_settings();
-    let n = wipdr_io::floor::walk_files(dir)
+    let n = wipdr_io::floor::walk_files(wipdr_io::logfile_folder::logfile_dir(dir))
         .map(|f| f.len() as u64)
         .unwrap_or(0);
     let pb = progress::bar(n, &floor_label(dir));
@@ -155,10 +155,7 @@ mod tests {
         let dir = tmp.path().join("site").join("F2");
         let mut walk = Walk::default();
         walk.meta.id = "good".into();
-        walk.waypoints.push(Waypoint {
-            t: 1000,
-            position: Point2::new(1.0, 5.0),
-        });
+        walk.waypoints.push(Waypoint::new(1000, Point2::new(1.0, 5.0)));
         let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
         let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);
         floor::write_floor_dir(&dir, &plan, bbox, [&walk]).unwrap();

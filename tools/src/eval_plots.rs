@@ -299,7 +299,7 @@ fn error_over_time(
                         w.score
                             .errors
                             .iter()
-                            .map(|&(t, e)| ((t - t0) as f64 / 1000.0, e))
+                            .map(|&(t, e, _)| ((t - t0) as f64 / 1000.0, e))
                             .collect(),
                     )
                 })

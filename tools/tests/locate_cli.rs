@@ -82,7 +82,8 @@ fn locate_csv_scores_as_eval_json_for_every_scheme() {
             .iter()
             .find(|w| w["walk"] == walk.meta.id.as_str() && w["scheme"] == *scheme)
             .unwrap_or_else(|| panic!("{scheme} in the JSON"));
-        let errors: Vec<(i64, f64)> = serde_json::from_value(from_eval["errors"].clone()).unwrap();
+        let errors: Vec<(i64, f64, Option<i32>)> =
+            serde_json::from_value(from_eval["errors"].clone()).unwrap();
         assert!(!errors.is_empty(), "{scheme}");
         assert_eq!(
             located.errors, errors,

@@ -25,4 +25,12 @@ pub enum CoreError {
         /// Height in metres.
         height: f64,
     },
+    /// A value outside its valid range.
+    #[error("{field} {value} is out of range")]
+    InvalidValue {
+        /// The offending field.
+        field: &'static str,
+        /// The value given.
+        value: f64,
+    },
 }

@@ -26,6 +26,7 @@ pub mod error;
 pub mod fingerprint_table;
 pub mod fit;
 pub mod floor;
+pub mod geo;
 pub mod grid;
 pub mod imu;
 pub mod observation;
@@ -38,12 +39,13 @@ pub mod wifi;
 pub use error::CoreError;
 pub use fingerprint_table::{FingerprintLabel, FingerprintTable};
 pub use floor::{FloorPlan, Polygon, Segment, Unit};
+pub use geo::GeoFrame;
 pub use grid::{GridError, GridSpec};
 pub use imu::{ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample};
 pub use observation::{Candidate, WifiObservation};
 pub use step::{MotionState, SpeedClass, StepEvent, TurnState};
 pub use survey::Floor;
-pub use walk::{BeaconSample, Record, Walk, WalkMeta, Waypoint};
+pub use walk::{BeaconSample, PressureSample, Record, Walk, WalkMeta, Waypoint};
 pub use wifi::{Bssid, WifiEntry, WifiScan};
 
 /// A point in the floor's metric frame (`x` east / map right, `y` north / map up), metres.

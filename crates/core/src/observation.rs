@@ -14,6 +14,9 @@ pub struct Candidate {
     pub weight: f64,
     /// Index of the reference point in its radio map.
     pub index: usize,
+    /// The reference point's floor, where the map has floors.
+    #[serde(default)]
+    pub floor: Option<i32>,
 }
 
 /// A Wi-Fi position fix with the evidence behind it, so that TCPF can re-filter candidates and
@@ -35,6 +38,59 @@ pub struct WifiObservation {
 }
 
 impl WifiObservation {
+    /// The fix restricted to the candidates on `floor` (weights renormalised, estimate their
+    /// weighted mean, `floor` set); `None` when no candidate is on that floor. A fix whose
+    /// candidates have no floor is returned unchanged but for `floor`.
+    ///
+    /// ```
+    /// use wipdr_core::{Candidate, Point2, WifiObservation};
+    /// let c = |x: f64, floor| Candidate { position: Point2::new(x, 0.0), distance: 1.0, weight: 0.5, index: 0, floor };
+    /// let fix = WifiObservation { t: 0, estimate: Point2::new(5.0, 0.0), candidates: vec![c(0.0, Some(0)), c(10.0, Some(-2))],
+    ///                             visited: 2, floor: Some(0), building: None };
+    /// let on = fix.on_floor(-2).unwrap();
+    /// assert_eq!((on.estimate.x, on.candidates.len(), on.floor), (10.0, 1, Some(-2)));
+    /// assert!(fix.on_floor(1).is_none());
+    /// ```
+    pub fn on_floor(&self, floor: i32) -> Option<WifiObservation> {
+        if self.candidates.iter().all(|c| c.floor.is_none()) {
+            return Some(WifiObservation {
+                floor: Some(floor),
+                ..self.clone()
+            });
+        }
+        let mut candidates: Vec<Candidate> = self
+            .candidates
+            .iter()
+            .filter(|c| c.floor == Some(floor))
+            .copied()
+            .collect();
+        if candidates.is_empty() {
+            return None;
+        }
+        let sum: f64 = candidates.iter().map(|c| c.weight).sum();
+        let n = candidates.len() as f64;
+        for c in &mut candidates {
+            c.weight = if sum.is_finite() && sum > 0.0 {
+                c.weight / sum
+            } else {
+                1.0 / n
+            };
+        }
+        let mut estimate = Point2::origin();
+        for c in &candidates {
+            estimate.x += c.weight * c.position.x;
+            estimate.y += c.weight * c.position.y;
+        }
+        Some(WifiObservation {
+            t: self.t,
+            estimate,
+            candidates,
+            visited: self.visited,
+            floor: Some(floor),
+            building: self.building,
+        })
+    }
+
     /// Signal distance of the best candidate (a quality signal: large means a poor match).
     pub fn best_distance(&self) -> Option<f64> {
         self.candidates.first().map(|c| c.distance)

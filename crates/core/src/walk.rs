@@ -4,16 +4,45 @@ use crate::imu::{ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sampl
 use crate::{Point2, TimestampMs, WifiScan};
 use serde::{Deserialize, Serialize};
 
-/// A surveyed ground-truth position (`TYPE_WAYPOINT`).
+/// A surveyed ground-truth position (ILC `TYPE_WAYPOINT`, IPIN `POSI`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Waypoint {
-    /// Time (Unix ms).
+    /// Time (ms, the walk's clock).
     pub t: TimestampMs,
     /// Position in the floor frame, metres.
     pub position: Point2,
+    /// Floor level (0 = ground, -1 = first basement, 1 = first upper floor), where known.
+    #[serde(default)]
+    pub floor: Option<i32>,
 }
 
-/// A Bluetooth beacon reading (`TYPE_BEACON`), kept for completeness.
+impl Waypoint {
+    /// A waypoint of unknown floor.
+    pub fn new(t: TimestampMs, position: Point2) -> Self {
+        Self {
+            t,
+            position,
+            floor: None,
+        }
+    }
+
+    /// The waypoint on floor level `floor`.
+    pub fn on_floor(mut self, floor: i32) -> Self {
+        self.floor = Some(floor);
+        self
+    }
+}
+
+/// A barometer reading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PressureSample {
+    /// Time (ms, the stream's clock).
+    pub t: TimestampMs,
+    /// Pressure, hPa (= mbar).
+    pub hpa: f64,
+}
+
+/// A Bluetooth Low Energy beacon reading (ILC `TYPE_BEACON`, IPIN `BLE4`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BeaconSample {
     /// Time (Unix ms).
@@ -24,16 +53,16 @@ pub struct BeaconSample {
     pub major: String,
     /// iBeacon minor.
     pub minor: String,
-    /// Calibrated transmit power, dBm.
-    pub tx_power: f64,
+    /// Calibrated transmit power, dBm (iBeacon frames).
+    pub tx_power: Option<f64>,
     /// Received signal strength, dBm.
     pub rssi_dbm: f64,
-    /// Distance estimated by the phone, metres.
-    pub distance: f64,
+    /// Distance estimated by the phone, metres (ILC only).
+    pub distance: Option<f64>,
     /// MAC address as written.
     pub mac: String,
-    /// The beacon's own timestamp field (Unix ms).
-    pub seen_ms: TimestampMs,
+    /// The beacon's own timestamp field (ms; ILC only).
+    pub seen_ms: Option<TimestampMs>,
 }
 
 /// Who, where and with what a walk was recorded (from the trace's `#` headers).
@@ -59,6 +88,10 @@ pub struct WalkMeta {
     pub start_time: Option<TimestampMs>,
     /// `endTime` header (Unix ms).
     pub end_time: Option<TimestampMs>,
+    /// The route walked, where walks repeat routes (IPIN `TrialNN`): the evaluation then
+    /// keeps all repetitions of a route in one fold.
+    #[serde(default)]
+    pub route: Option<String>,
 }
 
 /// One recorded walk: every stream sorted by time.
@@ -74,6 +107,9 @@ pub struct Walk {
     pub beacons: Vec<BeaconSample>,
     /// IMU streams, each sorted by time.
     pub imu: ImuStreams,
+    /// Barometer readings, sorted by time.
+    #[serde(default)]
+    pub pressure: Vec<PressureSample>,
 }
 
 /// One record of a walk, borrowed, for the merged replay.
@@ -85,6 +121,8 @@ pub enum Record<'a> {
     Wifi(&'a WifiScan),
     /// A beacon reading.
     Beacon(&'a BeaconSample),
+    /// A barometer reading.
+    Pressure(&'a PressureSample),
     /// An accelerometer sample.
     Accelerometer(&'a Vec3Sample),
     /// A gyroscope sample.
@@ -108,6 +146,7 @@ impl Record<'_> {
             Record::Waypoint(r) => r.t,
             Record::Wifi(r) => r.t,
             Record::Beacon(r) => r.t,
+            Record::Pressure(r) => r.t,
             Record::Accelerometer(r) | Record::Gyroscope(r) | Record::Magnetometer(r) => r.t,
             Record::RotationVector(r) => r.t,
             Record::AccelerometerUncalibrated(r)
@@ -123,6 +162,7 @@ impl Walk {
         self.waypoints.sort_by_key(|w| w.t);
         self.wifi.sort_by_key(|s| s.t);
         self.beacons.sort_by_key(|b| b.t);
+        self.pressure.sort_by_key(|p| p.t);
         self.imu.sort();
     }
 
@@ -147,6 +187,10 @@ impl Walk {
         upd(
             self.beacons.first().map(|r| r.t),
             self.beacons.last().map(|r| r.t),
+        );
+        upd(
+            self.pressure.first().map(|r| r.t),
+            self.pressure.last().map(|r| r.t),
         );
         let imu = &self.imu;
         for s in [&imu.accelerometer, &imu.gyroscope, &imu.magnetometer] {
@@ -179,8 +223,15 @@ impl Walk {
         interpolate_waypoints(&self.waypoints, t)
     }
 
+    /// The ground-truth floor at time `t`: the floor of the latest waypoint at or before `t`
+    /// (a floor changes on the stairs between two waypoints; the earlier one's floor holds
+    /// until the later is reached). `None` outside the waypoints' span or when unknown.
+    pub fn floor_at(&self, t: TimestampMs) -> Option<i32> {
+        floor_of_waypoints(&self.waypoints, t)
+    }
+
     /// All records of all streams merged into one time-ordered sequence. Records with equal
-    /// times come in a fixed stream order (IMU first, then Wi-Fi, beacons, waypoints), so a
+    /// times come in a fixed stream order (IMU first, then Wi-Fi, pressure, beacons, waypoints), so a
     /// replay is deterministic. Assumes sorted streams ([`Walk::sort_streams`]).
     pub fn replay(&self) -> Vec<Record<'_>> {
         let imu = &self.imu;
@@ -207,6 +258,7 @@ impl Walk {
                 .map(Record::MagnetometerUncalibrated),
         );
         out.extend(self.wifi.iter().map(Record::Wifi));
+        out.extend(self.pressure.iter().map(Record::Pressure));
         out.extend(self.beacons.iter().map(Record::Beacon));
         out.extend(self.waypoints.iter().map(Record::Waypoint));
         // Stable sort keeps the stream order above for equal times.
@@ -239,15 +291,23 @@ pub fn interpolate_waypoints(waypoints: &[Waypoint], t: TimestampMs) -> Option<P
     Some(a.position + (b.position - a.position) * f)
 }
 
+/// The floor of the latest waypoint at or before `t` in a time-sorted list; `None` outside its
+/// span or when that waypoint's floor is unknown.
+pub fn floor_of_waypoints(waypoints: &[Waypoint], t: TimestampMs) -> Option<i32> {
+    let last = waypoints.last()?;
+    if t > last.t {
+        return None;
+    }
+    let i = waypoints.partition_point(|w| w.t <= t);
+    waypoints.get(i.checked_sub(1)?)?.floor
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn wp(t: i64, x: f64, y: f64) -> Waypoint {
-        Waypoint {
-            t,
-            position: Point2::new(x, y),
-        }
+        Waypoint::new(t, Point2::new(x, y))
     }
 
     #[test]

@@ -12,7 +12,7 @@ use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::static_start::StaticStartConfig;
 use wipdr_pdr::PdrConfig;
 use wipdr_pdr::calibrate::CalibrationConfig;
-use wipdr_positioning::PositionerConfig;
+use wipdr_positioning::{FloorConfig, PositionerConfig};
 
 /// Everything an evaluation can be told; every field has a default. Read it with
 /// [`EvalConfig::from_toml`]: a partial section merges onto these defaults (not onto its
@@ -60,6 +60,9 @@ pub struct EvalConfig {
     pub propagation: Option<PropagationConfig>,
     /// Count the synthesised points of `propagation` as coverage.
     pub propagation_is_coverage: bool,
+    /// The floor estimate from Wi-Fi and the barometer ([`FloorConfig`]), used where the
+    /// radio map has floors (IPIN logfiles; ILC floors evaluated as one building).
+    pub floor: FloorConfig,
 }
 
 impl Default for EvalConfig {
@@ -80,6 +83,7 @@ impl Default for EvalConfig {
             score_first_m: None,
             propagation: None,
             propagation_is_coverage: false,
+            floor: positioner.floor,
         }
     }
 }
@@ -194,6 +198,7 @@ impl EvalConfig {
             scheme,
             map_matching: self.map_matching,
             static_start: self.static_start.clone(),
+            floor: self.floor,
             seed: self.seed,
         }
     }

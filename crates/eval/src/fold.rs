@@ -2,11 +2,11 @@
 //! its extension, the built matcher, the calibrated PDR, coverage and trails), and the
 //! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
 
-use crate::folds::folds_by_name;
+use crate::folds::folds_of_walks;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
 use crate::pipeline::{EvalError, FloorInput, PreparedWalk, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
 use std::sync::Arc;
-use wipdr_core::{Point2, Walk};
+use wipdr_core::{Point2, TimestampMs, Walk};
 use wipdr_fingerprint::MatcherModel;
 use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};
 use wipdr_fingerprint::walk_map::build_from_walks;
@@ -31,16 +31,15 @@ pub struct FoldModel {
     pub test_walks: Vec<usize>,
 }
 
-/// The protocol fold of every walk of a floor (walks sorted by file name, walk `i` in fold
-/// `i mod 5`).
+/// The protocol fold of every walk of a floor ([`folds_of_walks`]: by route where walks
+/// have routes, else walk `i` of the name order in fold `i mod 5`).
 pub fn folds_of(floor: &FloorInput) -> Vec<usize> {
-    let ids: Vec<&str> = floor
-        .data
-        .walks
-        .iter()
-        .map(|w| w.meta.id.as_str())
-        .collect();
-    folds_by_name(&ids)
+    folds_of_walks(&floor.data.walks).0
+}
+
+/// The number of protocol folds of a floor.
+pub fn fold_count(floor: &FloorInput) -> usize {
+    folds_of_walks(&floor.data.walks).1
 }
 
 impl FoldModel {
@@ -130,14 +129,22 @@ impl FoldModel {
         walk: &Walk,
         cfg: &EvalConfig,
     ) -> PreparedWalk {
-        let mut frontend = Frontend::new(self.pdr, self.matcher.stream(cfg.query));
+        let mut frontend =
+            Frontend::with_floor_config(self.pdr, self.matcher.stream(cfg.query), cfg.floor);
         let mut steps = Vec::new();
         let mut observations = Vec::with_capacity(walk.wifi.len());
+        let mut floors: Vec<(TimestampMs, i32)> = Vec::new();
         for sample in samples_of(walk) {
+            let t = sample.t();
             match frontend.push(&sample) {
                 Some(Event::Step(s)) => steps.push(s),
                 Some(Event::Fix(o)) => observations.push(o),
                 None => {}
+            }
+            if let Some(f) = frontend.floor()
+                && floors.last().is_none_or(|&(_, last)| last != f)
+            {
+                floors.push((t, f));
             }
         }
         let counts = frontend.counts();
@@ -151,6 +158,8 @@ impl FoldModel {
             unmatched_scans: usize::try_from(counts.unmatched_scans).unwrap_or(usize::MAX),
             first_scan_t: walk.wifi.first().map(|s| s.t),
             waypoints: walk.waypoints.clone(),
+            floors,
+            off_floor_fixes: usize::try_from(counts.off_floor_fixes).unwrap_or(usize::MAX),
             coverage: self.coverage.clone(),
             trails: self.trails.clone(),
         }

@@ -1,5 +1,9 @@
-//! The fold rule of the evaluation protocol (`docs/evaluation.md`): walks sorted by file name,
-//! walk `i` in fold `i mod 5`.
+//! The fold rules of the evaluation protocol (`docs/evaluation.md`): walks sorted by file
+//! name, walk `i` in fold `i mod 5`; or, where walks repeat routes (IPIN `TrialNN`, every
+//! walk's [`wipdr_core::WalkMeta::route`] given), leave-one-route-out: one fold per route,
+//! all repetitions of a route together.
+
+use wipdr_core::Walk;
 
 /// Number of folds of the protocol.
 pub const FOLDS: usize = 5;
@@ -20,6 +24,44 @@ pub fn folds_by_name<S: AsRef<str>>(names: &[S]) -> Vec<usize> {
         fold[i] = rank % FOLDS;
     }
     fold
+}
+
+/// The folds of a floor's walks: `(fold of each walk, number of folds)`. Leave-one-route-out
+/// when every walk has a route (folds in route-name order), else [`folds_by_name`] with
+/// [`FOLDS`] folds.
+///
+/// ```
+/// use wipdr_core::Walk;
+/// use wipdr_eval::folds::folds_of_walks;
+/// let walk = |id: &str, route: Option<&str>| {
+///     let mut w = Walk::default();
+///     w.meta.id = id.into();
+///     w.meta.route = route.map(String::from);
+///     w
+/// };
+/// let routes = [walk("a1", Some("Trial03")), walk("b1", Some("Trial01")), walk("b2", Some("Trial01"))];
+/// assert_eq!(folds_of_walks(&routes), (vec![1, 0, 0], 2));
+/// let plain = [walk("x", None), walk("y", Some("Trial01"))];
+/// assert_eq!(folds_of_walks(&plain).1, 5);
+/// ```
+pub fn folds_of_walks(walks: &[Walk]) -> (Vec<usize>, usize) {
+    let routes: Option<Vec<&str>> = walks.iter().map(|w| w.meta.route.as_deref()).collect();
+    match routes {
+        Some(routes) if !routes.is_empty() => {
+            let mut names: Vec<&str> = routes.clone();
+            names.sort_unstable();
+            names.dedup();
+            let folds = routes
+                .iter()
+                .map(|r| names.binary_search(r).unwrap_or(0))
+                .collect();
+            (folds, names.len())
+        }
+        _ => {
+            let ids: Vec<&str> = walks.iter().map(|w| w.meta.id.as_str()).collect();
+            (folds_by_name(&ids), FOLDS)
+        }
+    }
 }
 
 #[cfg(test)]

@@ -17,7 +17,7 @@
 //! use wipdr_eval::report::{EvalReport, WalkResult};
 //! use wipdr_eval::scoring::score_track;
 //!
-//! let truth = [Waypoint { t: 1_000, position: Point2::new(0.0, 0.0) }];
+//! let truth = [Waypoint::new(1_000, Point2::new(0.0, 0.0))];
 //! let track = vec![(500, Point2::new(3.0, 4.0))];
 //! let score = score_track(&truth, &track, None);
 //! let walks = vec![WalkResult { floor: "F1".into(), walk: "w".into(), fold: 0,

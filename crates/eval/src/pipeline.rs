@@ -13,7 +13,7 @@
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
 use crate::report::{EvalReport, WalkResult};
-use crate::scoring::{Track, score_track};
+use crate::scoring::{Track, score_track_with_floors};
 use rayon::prelude::*;
 use std::sync::Arc;
 use thiserror::Error;
@@ -148,6 +148,12 @@ pub struct PreparedWalk {
     pub first_scan_t: Option<TimestampMs>,
     /// Ground truth, for scoring only.
     pub waypoints: Vec<Waypoint>,
+    /// The stream's floor estimate (`(time, floor)` at each change; empty when the radio
+    /// map has no floors): scheme-independent, made by the front end from Wi-Fi and the
+    /// barometer.
+    pub floors: Vec<(TimestampMs, i32)>,
+    /// Fixes dropped because none of their candidates was on the stream's floor.
+    pub off_floor_fixes: usize,
     /// Positions of the fold's radio-map reference points (training data: where the map
     /// has fingerprints), shared by the fold's walks; coverage-aware schemes use it.
     pub coverage: Arc<Vec<Point2>>,
@@ -192,19 +198,27 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
     crate::pdr_protocol::calibrate_steps(base, cal, &walks)
 }
 
+/// A floor needs a walk per fold (route folds: at least two routes).
+fn check_enough_walks(f: &FloorInput) -> Result<(), EvalError> {
+    let n = f.data.walks.len();
+    let folds = crate::fold::fold_count(f);
+    let needed = if folds == FOLDS { FOLDS } else { 2 };
+    if n < needed || folds < 2 {
+        return Err(EvalError::TooFewWalks {
+            floor: f.label.clone(),
+            walks: n,
+            folds: needed,
+        });
+    }
+    Ok(())
+}
+
 /// Turns every walk of `floors` into scheme inputs under the protocol folds.
 pub fn prepare(floors: &[FloorInput], cfg: &EvalConfig) -> Result<Vec<PreparedWalk>, EvalError> {
     let mut jobs = Vec::new();
     for (fi, f) in floors.iter().enumerate() {
-        let n = f.data.walks.len();
-        if n < FOLDS {
-            return Err(EvalError::TooFewWalks {
-                floor: f.label.clone(),
-                walks: n,
-                folds: FOLDS,
-            });
-        }
-        for fold in 0..FOLDS {
+        check_enough_walks(f)?;
+        for fold in 0..crate::fold::fold_count(f) {
             jobs.push((fi, fold));
         }
     }
@@ -337,13 +351,7 @@ pub fn locate(
             floor: floor.label.clone(),
             walk: walk_id.to_string(),
         })?;
-    if walks.len() < FOLDS {
-        return Err(EvalError::TooFewWalks {
-            floor: floor.label.clone(),
-            walks: walks.len(),
-            folds: FOLDS,
-        });
-    }
+    check_enough_walks(floor)?;
     let fold = crate::fold::folds_of(floor)[index];
     let model = FoldModel::build(floor, fold, cfg)?;
     let walk = &walks[index];
@@ -394,8 +402,13 @@ pub fn run_prepared(
                 None
             };
             let score = match cfg.score_first_m {
-                None => score_track(&pw.waypoints, &track, from),
-                Some(m) => score_track(&first_metres(&pw.waypoints, m), &track, from),
+                None => score_track_with_floors(&pw.waypoints, &track, &pw.floors, from),
+                Some(m) => score_track_with_floors(
+                    &first_metres(&pw.waypoints, m),
+                    &track,
+                    &pw.floors,
+                    from,
+                ),
             };
             on_done();
             Ok(WalkResult {

@@ -7,10 +7,19 @@
 //!   "pooled": { "<scheme>": Summary, ... },
 //!   "floors": { "<floor folder>": { "<scheme>": Summary, ... }, ... },
 //!   "walks":  [ { "floor", "walk", "fold", "scheme", "count", "skipped", "mean", "p95",
-//!                 "max", "errors": [[t_ms, metres], ...] }, ... ],
+//!                 "max", "errors": [[t_ms, metres, floor_error], ...] }, ... ],
 //!   "config": { ...the evaluation config used... }
 //! }
-//! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max" }
+//! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max",
+//!             "floor_hit_rate", "evaal" }
+//! ```
+//!
+//! `floor_error` is the estimated minus the true floor (0 where the walk has no floors;
+//! `null` before the stream's first floor estimate); `floor_hit_rate` is over the scored
+//! points with a true floor (`null` without any); `evaal` is the IPIN competition's metric,
+//! the 75th percentile of 2D error + 15 m x |floor error| ([`crate::scoring::evaal_errors`]).
+//!
+//! ```text
 //! ```
 
 use crate::scoring::WalkScore;
@@ -37,16 +46,29 @@ pub struct Summary {
     pub p95: f64,
     /// Maximum error, metres.
     pub max: f64,
+    /// Share of the scored points with a true floor whose floor estimate was right; `None`
+    /// without such points.
+    #[serde(default)]
+    pub floor_hit_rate: Option<f64>,
+    /// EvAAL metric: 75th percentile of 2D error + 15 m x |floor error|, metres; `None`
+    /// without scored points (and in sweep result files, which keep the 2D figures only).
+    #[serde(default)]
+    pub evaal: Option<f64>,
 }
 
 impl Summary {
     /// Summarises the scores of several walks (pooled over their waypoints).
     pub fn from_scores<'a>(scores: impl IntoIterator<Item = &'a WalkScore>) -> Self {
         let mut errors = Vec::new();
+        let mut evaal = Vec::new();
         let mut skipped = 0;
+        let (mut floor_scored, mut floor_hits) = (0usize, 0usize);
         for s in scores {
             errors.extend(s.errors.iter().map(|e| e.1));
+            evaal.extend(crate::scoring::evaal_errors(&s.errors));
             skipped += s.skipped;
+            floor_scored += s.floor_scored;
+            floor_hits += s.floor_hits();
         }
         let st = ErrorStats::from_errors(&errors);
         Self {
@@ -58,6 +80,8 @@ impl Summary {
             p75: st.p75,
             p95: st.p95,
             max: st.max,
+            floor_hit_rate: (floor_scored > 0).then(|| floor_hits as f64 / floor_scored as f64),
+            evaal: (!evaal.is_empty()).then(|| ErrorStats::from_errors(&evaal).p75),
         }
     }
 }
@@ -143,20 +167,39 @@ impl EvalReport {
             .max()
             .unwrap_or(0)
             .max(8);
+        // Floor hits and EvAAL only where some walk has floors (IPIN logfiles, buildings).
+        let floors = self
+            .floors
+            .values()
+            .flat_map(|r| r.values())
+            .chain(self.pooled.values())
+            .any(|r| r.floor_hit_rate.is_some());
         let mut block = |title: &str, rows: &BTreeMap<String, Summary>| {
             let _ = writeln!(out, "{title}");
-            let _ = writeln!(
+            let _ = write!(
                 out,
                 "  {:<width$} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}",
                 "scheme", "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max"
             );
+            if floors {
+                let _ = write!(out, " {:>7} {:>7}", "floor%", "evaal");
+            }
+            let _ = writeln!(out);
             for s in &self.schemes {
                 if let Some(r) = rows.get(s) {
-                    let _ = writeln!(
+                    let _ = write!(
                         out,
                         "  {:<width$} {:>6} {:>7} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>8.2}",
                         s, r.count, r.skipped, r.mean, r.rms, r.p50, r.p75, r.p95, r.max
                     );
+                    if floors {
+                        let hits = r
+                            .floor_hit_rate
+                            .map_or("-".to_string(), |h| format!("{:.1}", 100.0 * h));
+                        let evaal = r.evaal.map_or("-".to_string(), |e| format!("{e:.2}"));
+                        let _ = write!(out, " {hits:>7} {evaal:>7}");
+                    }
+                    let _ = writeln!(out);
                 }
             }
         };
@@ -180,7 +223,7 @@ impl EvalReport {
                 .entry(s.clone())
                 .or_insert_with(|| vec![(0, 0.0); last + 1]);
             for w in self.walks.iter().filter(|w| &w.scheme == s) {
-                for (i, (_, e)) in w.score.errors.iter().enumerate() {
+                for (i, (_, e, _)) in w.score.errors.iter().enumerate() {
                     if e.is_finite() {
                         let row = &mut rows[i.min(last)];
                         row.0 += 1;
@@ -204,7 +247,7 @@ impl EvalReport {
         if let Some(first) = self.schemes.first() {
             for w in self.walks.iter().filter(|w| &w.scheme == first) {
                 if let Some(t0) = w.first_scan_t {
-                    for (i, (t, _)) in w.score.errors.iter().enumerate() {
+                    for (i, (t, _, _)) in w.score.errors.iter().enumerate() {
                         seconds[i.min(last)].push((t - t0) as f64 / 1000.0);
                     }
                 }
@@ -268,9 +311,10 @@ mod tests {
                 errors: errs
                     .iter()
                     .enumerate()
-                    .map(|(i, &e)| (i as i64, e))
+                    .map(|(i, &e)| (i as i64, e, Some(0)))
                     .collect(),
                 skipped: 1,
+                floor_scored: 0,
             },
         }
     }

@@ -5,6 +5,13 @@
 //! latest estimate at or before that time. Waypoints before the first estimate, or before the
 //! protocol's scoring start (the walk's first Wi-Fi scan, as the reference pipeline scores), are
 //! counted as skipped — never silently dropped.
+//!
+//! **Floors.** Where waypoints carry a floor, the floor error at a waypoint is the stream's
+//! floor estimate at or before its time minus the true floor: `Some(0)` is a hit; `None`
+//! when the stream had no floor estimate yet. Where the waypoint has no floor (a single ILC
+//! floor), the floor error is `Some(0)`. The competition's EvAAL metric
+//! ([`evaal_errors`]) adds [`FLOOR_PENALTY_M`] per floor of error (a missing floor counts as
+//! one floor off).
 
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, TimestampMs, Waypoint};
@@ -12,20 +19,49 @@ use wipdr_core::{Point2, TimestampMs, Waypoint};
 /// A causal track of estimates, sorted by time.
 pub type Track = Vec<(TimestampMs, Point2)>;
 
+/// A stream's floor estimate: `(time, floor)` at each change, sorted by time.
+pub type FloorTrack = Vec<(TimestampMs, i32)>;
+
+/// Metres of EvAAL error per floor of floor error (the IPIN competition's 15 m).
+pub const FLOOR_PENALTY_M: f64 = 15.0;
+
+/// One scored waypoint: time, 2D error (metres), floor error (estimate minus truth; `None`:
+/// no floor estimate yet).
+pub type ScoredPoint = (TimestampMs, f64, Option<i32>);
+
 /// The scored waypoints of one walk for one scheme.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct WalkScore {
-    /// `(waypoint time, error in metres)` of every scored waypoint.
-    pub errors: Vec<(TimestampMs, f64)>,
+    /// `(waypoint time, 2D error in metres, floor error)` of every scored waypoint.
+    pub errors: Vec<ScoredPoint>,
     /// Waypoints not scored: before the scoring start or before the scheme's first estimate.
     pub skipped: usize,
+    /// Scored waypoints with a known true floor.
+    #[serde(default)]
+    pub floor_scored: usize,
 }
 
 impl WalkScore {
-    /// The error values alone.
+    /// The 2D error values alone.
     pub fn values(&self) -> Vec<f64> {
         self.errors.iter().map(|e| e.1).collect()
     }
+
+    /// Scored waypoints with a true floor whose floor estimate was right.
+    pub fn floor_hits(&self) -> usize {
+        // Waypoints without a true floor score `Some(0)` too: count hits among the known.
+        let hits = self.errors.iter().filter(|e| e.2 == Some(0)).count();
+        hits.saturating_sub(self.errors.len() - self.floor_scored)
+    }
+}
+
+/// The EvAAL error of each scored point: 2D error + [`FLOOR_PENALTY_M`] x |floor error| (a
+/// missing floor estimate counts as one floor).
+pub fn evaal_errors(points: &[ScoredPoint]) -> Vec<f64> {
+    points
+        .iter()
+        .map(|&(_, e, f)| e + FLOOR_PENALTY_M * f.map_or(1.0, |f| f64::from(f.unsigned_abs())))
+        .collect()
 }
 
 /// Scores `track` at `waypoints` (both time-sorted). Waypoints before `score_from` (if given) or
@@ -35,21 +71,34 @@ impl WalkScore {
 /// ```
 /// use wipdr_core::{Point2, Waypoint};
 /// use wipdr_eval::scoring::score_track;
-/// let wps = [Waypoint { t: 0, position: Point2::new(0.0, 0.0) },
-///            Waypoint { t: 10, position: Point2::new(3.0, 4.0) }];
+/// let wps = [Waypoint::new(0, Point2::new(0.0, 0.0)),
+///            Waypoint::new(10, Point2::new(3.0, 4.0))];
 /// let track = vec![(5, Point2::new(0.0, 0.0))];
 /// let s = score_track(&wps, &track, None);
 /// assert_eq!(s.skipped, 1);
-/// assert_eq!(s.errors, vec![(10, 5.0)]);
+/// assert_eq!(s.errors, vec![(10, 5.0, Some(0))]);
 /// ```
 pub fn score_track(
     waypoints: &[Waypoint],
     track: &[(TimestampMs, Point2)],
     score_from: Option<TimestampMs>,
 ) -> WalkScore {
+    score_track_with_floors(waypoints, track, &[], score_from)
+}
+
+/// [`score_track`] with the stream's floor estimate (`floors`: `(time, floor)` at each
+/// change, time-sorted), scored where the waypoints have floors (module docs).
+pub fn score_track_with_floors(
+    waypoints: &[Waypoint],
+    track: &[(TimestampMs, Point2)],
+    floors: &[(TimestampMs, i32)],
+    score_from: Option<TimestampMs>,
+) -> WalkScore {
     let mut out = WalkScore::default();
     let mut j = 0usize;
+    let mut k = 0usize;
     let mut latest: Option<Point2> = None;
+    let mut floor: Option<i32> = None;
     for w in waypoints {
         while j < track.len() && track[j].0 <= w.t {
             let p = track[j].1;
@@ -58,14 +107,26 @@ pub fn score_track(
             }
             j += 1;
         }
+        while k < floors.len() && floors[k].0 <= w.t {
+            floor = Some(floors[k].1);
+            k += 1;
+        }
         if score_from.is_some_and(|t0| w.t < t0) {
             out.skipped += 1;
             continue;
         }
-        match latest {
-            Some(p) => out.errors.push((w.t, (p - w.position).norm())),
-            None => out.skipped += 1,
-        }
+        let Some(p) = latest else {
+            out.skipped += 1;
+            continue;
+        };
+        let floor_error = match w.floor {
+            None => Some(0),
+            Some(truth) => {
+                out.floor_scored += 1;
+                floor.map(|f| f.saturating_sub(truth))
+            }
+        };
+        out.errors.push((w.t, (p - w.position).norm(), floor_error));
     }
     out
 }
@@ -76,10 +137,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn wp(t: i64, x: f64) -> Waypoint {
-        Waypoint {
-            t,
-            position: Point2::new(x, 0.0),
-        }
+        Waypoint::new(t, Point2::new(x, 0.0))
     }
 
     #[test]
@@ -87,7 +145,7 @@ mod tests {
         let wps = [wp(10, 0.0), wp(20, 0.0)];
         let track = vec![(10, Point2::new(1.0, 0.0)), (11, Point2::new(100.0, 0.0))];
         let s = score_track(&wps, &track, None);
-        assert_eq!(s.errors, vec![(10, 1.0), (20, 100.0)]);
+        assert_eq!(s.errors, vec![(10, 1.0, Some(0)), (20, 100.0, Some(0))]);
     }
 
     #[test]
@@ -103,7 +161,27 @@ mod tests {
     fn nan_estimates_are_ignored() {
         let wps = [wp(10, 0.0)];
         let track = vec![(1, Point2::new(1.0, 0.0)), (2, Point2::new(f64::NAN, 0.0))];
-        assert_eq!(score_track(&wps, &track, None).errors, vec![(10, 1.0)]);
+        assert_eq!(
+            score_track(&wps, &track, None).errors,
+            vec![(10, 1.0, Some(0))]
+        );
+    }
+
+    #[test]
+    fn floors_are_scored_with_the_latest_floor_estimate() {
+        let wps = [
+            wp(10, 0.0).on_floor(0),
+            wp(20, 0.0).on_floor(-2),
+            wp(30, 0.0).on_floor(-2),
+            wp(40, 0.0),
+        ];
+        let track = vec![(5, Point2::new(3.0, 4.0))];
+        let s = score_track_with_floors(&wps, &track, &[(12, 0), (25, -2)], None);
+        let floor_errors: Vec<Option<i32>> = s.errors.iter().map(|e| e.2).collect();
+        assert_eq!(floor_errors, vec![None, Some(2), Some(0), Some(0)]);
+        assert_eq!(s.floor_scored, 3);
+        assert_eq!(s.floor_hits(), 1);
+        assert_eq!(evaal_errors(&s.errors), vec![20.0, 35.0, 5.0, 5.0]);
     }
 
     proptest! {

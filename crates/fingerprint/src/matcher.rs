@@ -106,7 +106,8 @@ pub fn observation_from_neighbours(
     let mut estimate = Point2::origin();
     let mut candidates = Vec::with_capacity(neighbours.len());
     for (&(index, distance), &w) in neighbours.iter().zip(&weights) {
-        let p = map.point(index).position;
+        let point = map.point(index);
+        let p = point.position;
         estimate.x += w * p.x;
         estimate.y += w * p.y;
         candidates.push(Candidate {
@@ -114,6 +115,7 @@ pub fn observation_from_neighbours(
             distance,
             weight: w,
             index,
+            floor: point.floor,
         });
     }
     let floor = majority(neighbours.iter().map(|&(i, _)| map.point(i).floor));

@@ -23,7 +23,7 @@ use crate::interpolate::{
 use crate::radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, is_valid_rssi};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
-use wipdr_core::walk::interpolate_waypoints;
+use wipdr_core::walk::{floor_of_waypoints, interpolate_waypoints};
 use wipdr_core::{Bssid, Point2, TimestampMs, Walk};
 
 /// When a scan's fingerprint is labelled.
@@ -53,7 +53,9 @@ pub struct WalkMapConfig {
     /// Average fingerprints into square cells of this size (metres); `None` keeps one
     /// reference point per scan.
     pub grid_cell_m: Option<f64>,
-    /// Floor index written on every reference point, where known.
+    /// Floor written on the reference points whose walk's waypoints carry no floor (a
+    /// waypoint's floor, where known, labels the scans after it; grid cells never mix
+    /// floors).
     pub floor: Option<i32>,
     /// The map's settings ("not heard" value).
     pub radio: RadioMapConfig,
@@ -108,6 +110,7 @@ struct Fingerprint {
     walk: usize,
     t: TimestampMs,
     position: Point2,
+    floor: Option<i32>,
     entries: Vec<(Bssid, f32)>,
 }
 
@@ -177,6 +180,7 @@ where
                 walk: walk_index,
                 t,
                 position,
+                floor: floor_of_waypoints(&walk.waypoints, t).or(config.floor),
                 entries,
             });
         }
@@ -197,11 +201,12 @@ where
                 for &(b, r) in &f.entries {
                     row[column(b, &map)] = Some(r);
                 }
-                map.push_point(point(f.position, 1, config.floor), &row, None)?;
+                map.push_point(point(f.position, 1, f.floor), &row, None)?;
             }
         }
         Some(cell) => {
-            let mut cells: BTreeMap<(i64, i64), Vec<usize>> = BTreeMap::new();
+            // Cells never mix floors: the key leads with the fingerprint's floor.
+            let mut cells: BTreeMap<(Option<i32>, i64, i64), Vec<usize>> = BTreeMap::new();
             for (i, f) in prints.iter().enumerate() {
                 // Checked: a position so far out (or non-finite) that its bin does not fit
                 // an i64 would otherwise saturate into one bin with every other such point.
@@ -210,12 +215,12 @@ where
                     tracing::warn!(position = ?f.position, "fingerprint off any grid bin; skipped");
                     continue;
                 };
-                cells.entry((bx, by)).or_default().push(i);
+                cells.entry((f.floor, bx, by)).or_default().push(i);
             }
             let mut sum = vec![0f64; m];
             let mut sum_sq = vec![0f64; m];
             let mut count = vec![0u32; m];
-            for members in cells.values() {
+            for (&(floor, _, _), members) in &cells {
                 sum.fill(0.0);
                 sum_sq.fill(0.0);
                 count.fill(0);
@@ -251,7 +256,7 @@ where
                     })
                     .collect();
                 map.push_point(
-                    point(centre, members.len() as u32, config.floor),
+                    point(centre, members.len() as u32, floor),
                     &mean,
                     Some((&counts, &spread)),
                 )?;
@@ -338,14 +343,8 @@ mod tests {
     fn walk() -> Walk {
         Walk {
             waypoints: vec![
-                Waypoint {
-                    t: 0,
-                    position: Point2::new(0.0, 0.0),
-                },
-                Waypoint {
-                    t: 10_000,
-                    position: Point2::new(10.0, 0.0),
-                },
+                Waypoint::new(0, Point2::new(0.0, 0.0)),
+                Waypoint::new(10_000, Point2::new(10.0, 0.0)),
             ],
             wifi: vec![
                 WifiScan {

@@ -43,7 +43,7 @@
 //! let mut fuser = config.build(&BuildContext::default()).unwrap();
 //! let fix = |t, x: f64, y: f64| WifiObservation {
 //!     t, estimate: Point2::new(x, y),
-//!     candidates: vec![Candidate { position: Point2::new(x, y), distance: 1.0, weight: 1.0, index: 0 }],
+//!     candidates: vec![Candidate { position: Point2::new(x, y), distance: 1.0, weight: 1.0, index: 0, floor: None }],
 //!     visited: 1, floor: None, building: None,
 //! };
 //! fuser.on_wifi(&fix(0, 0.0, 0.0));                 // initialises at the first fix

@@ -146,6 +146,7 @@ impl Fuser for StaticStart {
                                 distance: last.best_distance().unwrap_or(0.0),
                                 weight: 1.0,
                                 index: 0,
+                                floor: None,
                             }],
                             visited: last.visited,
                             floor: last.floor,

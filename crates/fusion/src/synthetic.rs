@@ -285,6 +285,7 @@ impl SyntheticWalk {
                     distance: base + k as f64 * 0.3 + rng.sample(normal(0.8)).abs(),
                     weight: 1.0,
                     index: k,
+                    floor: None,
                 })
                 .collect();
             candidates.sort_by(|a, b| a.distance.total_cmp(&b.distance));
@@ -394,6 +395,7 @@ pub fn obs_at(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
             distance: 1.0,
             weight: 1.0,
             index: 0,
+            floor: None,
         }],
         visited: 1,
         floor: None,

@@ -192,10 +192,7 @@ mod tests {
 
     #[test]
     fn trails_join_consecutive_waypoints() {
-        let wp = |t, x| wipdr_core::Waypoint {
-            t,
-            position: Point2::new(x, 0.0),
-        };
+        let wp = |t, x| wipdr_core::Waypoint::new(t, Point2::new(x, 0.0));
         let a = [wp(0, 0.0), wp(1, 1.0), wp(2, 3.0)];
         let b = [wp(0, 9.0)];
         let t = trails_of([&a[..], &b[..]]);

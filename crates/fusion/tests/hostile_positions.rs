@@ -20,10 +20,7 @@ fn seg(ax: f64, ay: f64, bx: f64, by: f64) -> Segment {
 }
 
 fn wp(t: i64, x: f64, y: f64) -> wipdr_core::Waypoint {
-    wipdr_core::Waypoint {
-        t,
-        position: Point2::new(x, y),
-    }
+    wipdr_core::Waypoint::new(t, Point2::new(x, y))
 }
 
 fn fix(t: i64, x: f64, y: f64) -> WifiObservation {

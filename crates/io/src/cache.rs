@@ -49,6 +49,7 @@
 use crate::IoError;
 use crate::floor::{self, FloorData, ReadOptions, SkippedWalk};
 use crate::geojson::LonLatBox;
+use crate::logfile_folder;
 use crate::trace::{ParseReport, ParsedWalk};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -56,6 +57,7 @@ use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 use wipdr_core::{
+    GeoFrame, PressureSample,
     BeaconSample, FloorPlan, ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample,
     Walk, WalkMeta, Waypoint, WifiScan,
 };
@@ -67,7 +69,7 @@ pub const DEFAULT_CACHE_DIR: &str = "target/wipdr-cache";
 pub const DEFAULT_MAX_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
 /// Bumped whenever the cached types, the file layout or the reader's behaviour change.
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 const MAGIC: &[u8; 8] = b"WIPDRFC\0";
 /// Bytes of the fixed file header: magic, version, table offset, table length, table CRC,
 /// header CRC.
@@ -187,11 +189,15 @@ fn stamp(path: &Path) -> Result<SourceStamp, IoError> {
 }
 
 fn key_of(dir: &Path, options: &ReadOptions) -> Result<CacheKey, IoError> {
-    let mut sources = vec![
-        stamp(&dir.join(floor::FLOOR_INFO))?,
-        stamp(&dir.join(floor::GEOJSON_MAP))?,
-    ];
-    for f in floor::walk_files(dir)? {
+    let mut sources = Vec::new();
+    let walks = if logfile_folder::is_logfile_dir(dir) {
+        floor::walk_files(logfile_folder::logfile_dir(dir))?
+    } else {
+        sources.push(stamp(&dir.join(floor::FLOOR_INFO))?);
+        sources.push(stamp(&dir.join(floor::GEOJSON_MAP))?);
+        floor::walk_files(dir)?
+    };
+    for f in walks {
         sources.push(stamp(&f)?);
     }
     Ok(CacheKey {
@@ -374,7 +380,8 @@ fn try_load(file: &Path, key: &CacheKey) -> Result<FloorData, LoadFail> {
             decode_walk(&blob).ok_or_else(|| bad(format!("walk {i}: undecodable")))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let (name, dir, width, height, plan, lonlat_box, skipped_features, skipped_walks) = head;
+    let (name, dir, width, height, plan, lonlat_box, skipped_features, skipped_walks, geo_frame) =
+        head;
     Ok(FloorData {
         name,
         dir,
@@ -382,6 +389,7 @@ fn try_load(file: &Path, key: &CacheKey) -> Result<FloorData, LoadFail> {
         height,
         plan,
         lonlat_box,
+        geo_frame,
         skipped_features,
         walks,
         skipped_walks,
@@ -398,6 +406,7 @@ type FloorHead = (
     LonLatBox,
     usize,
     Vec<SkippedWalk>,
+    Option<GeoFrame>,
 );
 
 /// A walk without its IMU streams, as encoded with bincode in the cache.
@@ -406,6 +415,7 @@ type WalkRest = (
     Vec<Waypoint>,
     Vec<WifiScan>,
     Vec<BeaconSample>,
+    Vec<PressureSample>,
     ParseReport,
 );
 
@@ -448,7 +458,14 @@ fn encode_err(e: bincode::error::EncodeError) -> std::io::Error {
 /// calls), each stream a `u64` count then its samples. Streamed into `out`.
 fn encode_walk_into(p: &ParsedWalk, out: &mut impl Write) -> std::io::Result<()> {
     let w = &p.walk;
-    let rest = (&w.meta, &w.waypoints, &w.wifi, &w.beacons, &p.report);
+    let rest = (
+        &w.meta,
+        &w.waypoints,
+        &w.wifi,
+        &w.beacons,
+        &w.pressure,
+        &p.report,
+    );
     bincode::serde::encode_into_std_write(rest, out, config()).map_err(encode_err)?;
     let imu = &w.imu;
     for s in [&imu.accelerometer, &imu.gyroscope, &imu.magnetometer] {
@@ -518,7 +535,7 @@ fn take_samples<'a>(bytes: &mut &'a [u8], size: usize) -> Option<&'a [u8]> {
 }
 
 fn decode_walk(b: &[u8]) -> Option<ParsedWalk> {
-    let ((meta, waypoints, wifi, beacons, report), used): (WalkRest, usize) =
+    let ((meta, waypoints, wifi, beacons, pressure, report), used): (WalkRest, usize) =
         bincode::serde::decode_from_slice(b, decode_config()).ok()?;
     let mut b = b.get(used..)?;
     let vec3 = |raw: &[u8]| -> Vec<Vec3Sample> {
@@ -563,6 +580,7 @@ fn decode_walk(b: &[u8]) -> Option<ParsedWalk> {
             waypoints,
             wifi,
             beacons,
+            pressure,
             imu: ImuStreams {
                 accelerometer,
                 gyroscope,
@@ -612,6 +630,7 @@ fn store(file: &Path, key: &CacheKey, floor: &FloorData) -> std::io::Result<()> 
             &floor.lonlat_box,
             floor.skipped_features,
             &floor.skipped_walks,
+            &floor.geo_frame,
         );
         bincode::serde::encode_into_std_write(head, &mut w, config()).map_err(encode_err)?;
         w.flush()?;
@@ -685,7 +704,22 @@ pub fn read_floor_dir_cached_with(
     )
 }
 
-/// Reads a floor folder as `cache` says: through the cache when enabled (see the module
+/// Reads a folder from its source files: a folder of IPIN logfiles
+/// ([`logfile_folder::read_logfile_dir`]) or an ILC floor folder
+/// ([`floor::read_floor_dir`]).
+pub fn read_source(
+    dir: &Path,
+    options: &ReadOptions,
+    on_walk: &(dyn Fn() + Sync),
+) -> Result<FloorData, IoError> {
+    if logfile_folder::is_logfile_dir(dir) {
+        logfile_folder::read_logfile_dir_with_progress(dir, options, on_walk)
+    } else {
+        floor::read_floor_dir_with_progress(dir, options, on_walk)
+    }
+}
+
+/// Reads a floor folder (ILC) or a folder of IPIN logfiles as `cache` says: through the cache when enabled (see the module
 /// doc), from source otherwise; `on_walk` is called after each walk read from source.
 ///
 /// ```
@@ -714,10 +748,11 @@ pub fn read_floor(
 ) -> Result<(FloorData, CacheOutcome), IoError> {
     let dir = dir.as_ref();
     if !cache.enabled {
-        return floor::read_floor_dir_with_progress(dir, options, on_walk)
-            .map(|f| (f, CacheOutcome::Disabled));
+        return read_source(dir, options, on_walk).map(|f| (f, CacheOutcome::Disabled));
     }
-    if !dir.join(floor::FLOOR_INFO).is_file() || !dir.join(floor::GEOJSON_MAP).is_file() {
+    if !logfile_folder::is_logfile_dir(dir)
+        && (!dir.join(floor::FLOOR_INFO).is_file() || !dir.join(floor::GEOJSON_MAP).is_file())
+    {
         // Let the reader produce its typed error.
         return floor::read_floor_dir(dir, options).map(|f| (f, CacheOutcome::MissNotStored));
     }
@@ -742,7 +777,7 @@ pub fn read_floor(
             rebuilt = true;
         }
     }
-    let floor = floor::read_floor_dir_with_progress(dir, options, on_walk)?;
+    let floor = read_source(dir, options, on_walk)?;
     if floor.skipped_walks.iter().any(|s| s.transient) {
         // The walk may read next time although its size and time are unchanged.
         tracing::info!(floor = %dir.display(), "a walk file failed to open or read: cache not written");

@@ -43,7 +43,7 @@ pub struct SkippedWalk {
 }
 
 impl SkippedWalk {
-    fn new(path: &Path, error: &IoError) -> Self {
+    pub(crate) fn new(path: &Path, error: &IoError) -> Self {
         let transient = match error {
             IoError::File { .. } => true,
             IoError::Read { source, .. } => !matches!(
@@ -86,6 +86,11 @@ pub struct FloorData {
     /// only when [`ReadOptions::strict`] is off and at least one walk was read.
     #[serde(default)]
     pub skipped_walks: Vec<SkippedWalk>,
+    /// The WGS84 frame of the metre coordinates, for folders of IPIN logfiles (ground truth
+    /// in degrees; see [`crate::logfile_folder`]); `None` for ILC floors, whose frame is the
+    /// GeoJSON box of [`FloorData::lonlat_box`].
+    #[serde(default)]
+    pub geo_frame: Option<wipdr_core::GeoFrame>,
 }
 
 impl FloorData {
@@ -213,7 +218,7 @@ pub fn write_floor_info(path: impl AsRef<Path>, width: f64, height: f64) -> Resu
 /// let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
 /// let mut walk = Walk::default();
 /// walk.meta.id = "w1".into();
-/// walk.waypoints.push(Waypoint { t: 1_000, position: Point2::new(3.0, 4.0) });
+/// walk.waypoints.push(Waypoint::new(1_000, Point2::new(3.0, 4.0)));
 /// write_floor_dir(&dir, &plan, LonLatBox::around(8.0, 47.0, 20.0, 10.0), [&walk]).unwrap();
 ///
 /// let floor = read_floor_dir(&dir, &ReadOptions::default()).unwrap();
@@ -427,6 +432,7 @@ pub fn read_floor_dir_with_progress(
         height,
         plan: plan_read.plan,
         lonlat_box: plan_read.lonlat_box,
+        geo_frame: None,
         skipped_features: plan_read.skipped_features,
         walks,
         skipped_walks,
@@ -448,10 +454,7 @@ mod tests {
             .map(|(i, id)| {
                 let mut w = Walk::default();
                 w.meta.id = id.to_string();
-                w.waypoints.push(Waypoint {
-                    t: 10 + i as i64,
-                    position: Point2::new(1.0 + i as f64, 2.0),
-                });
+                w.waypoints.push(Waypoint::new(10 + i as i64, Point2::new(1.0 + i as f64, 2.0)));
                 w
             })
             .collect();
@@ -484,10 +487,7 @@ mod tests {
                 let mut w = Walk::default();
                 w.meta.id = id.to_string();
                 for i in 0..n {
-                    w.waypoints.push(Waypoint {
-                        t: 1000 * i as i64,
-                        position: Point2::new(1.0 + i as f64, 2.0),
-                    });
+                    w.waypoints.push(Waypoint::new(1000 * i as i64, Point2::new(1.0 + i as f64, 2.0)));
                 }
                 w
             })

@@ -48,7 +48,7 @@
 //! let mut walk = Walk::default();
 //! walk.meta.id = "demo".into();
 //! walk.meta.start_time = Some(1_000);
-//! walk.waypoints.push(Waypoint { t: 1_000, position: Point2::new(3.0, 4.0) });
+//! walk.waypoints.push(Waypoint::new(1_000, Point2::new(3.0, 4.0)));
 //! let mut text = Vec::new();
 //! trace::write_walk(&walk, &mut text).unwrap();
 //!
@@ -66,6 +66,8 @@ pub mod fingerprint_csv;
 pub mod floor;
 pub mod geojson;
 pub mod limits;
+pub mod logfile;
+pub mod logfile_folder;
 pub mod trace;
 
 pub use cache::read_floor_dir_cached;

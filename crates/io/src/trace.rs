@@ -86,7 +86,7 @@ pub const MAX_ABS_ROTATION_VECTOR: f64 = 2.0;
 /// Largest accepted waypoint coordinate, metres.
 pub const MAX_ABS_COORDINATE_M: f64 = 1e6;
 
-fn in_range(v: &[f64], max: f64) -> Result<(), SkipKind> {
+pub(crate) fn in_range(v: &[f64], max: f64) -> Result<(), SkipKind> {
     if v.iter().all(|x| x.abs() <= max) {
         Ok(())
     } else {
@@ -148,6 +148,14 @@ pub struct ParseReport {
     pub out_of_order: usize,
     /// The largest lateness of an out-of-order record, ms.
     pub max_lateness_ms: i64,
+    /// Known record types the reader does not need (IPIN `GNSS`, `LIGH`, `SOUN`, ...), by
+    /// name: counted, not read.
+    #[serde(default)]
+    pub ignored: BTreeMap<String, usize>,
+    /// Sensor samples whose own clock disagreed with the app clock (IPIN logfiles; see
+    /// [`crate::logfile`]): timed by the app clock instead.
+    #[serde(default)]
+    pub sensor_clock_outliers: usize,
 }
 
 impl ParseReport {
@@ -183,6 +191,10 @@ impl ParseReport {
         self.run_on_lines_split += other.run_on_lines_split;
         self.out_of_order += other.out_of_order;
         self.max_lateness_ms = self.max_lateness_ms.max(other.max_lateness_ms);
+        for (k, v) in &other.ignored {
+            *self.ignored.entry(k.clone()).or_default() += v;
+        }
+        self.sensor_clock_outliers += other.sensor_clock_outliers;
     }
 }
 
@@ -268,14 +280,14 @@ pub fn read_walk_from(
     }
 }
 
-enum LineStatus {
+pub(crate) enum LineStatus {
     Eof,
     Line,
     TooLong,
 }
 
 /// Reads one line (without its `\n`) into `buf`, never buffering more than `max` bytes.
-fn read_line_bounded<R: BufRead>(
+pub(crate) fn read_line_bounded<R: BufRead>(
     reader: &mut R,
     buf: &mut Vec<u8>,
     max: usize,
@@ -396,7 +408,7 @@ fn parse_time(s: &str) -> Option<i64> {
         .filter(|t| (-MAX_ABS_TIME_MS..=MAX_ABS_TIME_MS).contains(t))
 }
 
-fn parse_f64(s: &str) -> Result<f64, SkipKind> {
+pub(crate) fn parse_f64(s: &str) -> Result<f64, SkipKind> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(SkipKind::BadNumber),
@@ -628,10 +640,7 @@ impl<'l> Parser<'l> {
                 let x = parse_f64(v[0]).map_err(Ok)?;
                 let y = parse_f64(v[1]).map_err(Ok)?;
                 in_range(&[x, y], MAX_ABS_COORDINATE_M).map_err(Ok)?;
-                self.walk.waypoints.push(Waypoint {
-                    t,
-                    position: wipdr_core::Point2::new(x, y),
-                });
+                self.walk.waypoints.push(Waypoint::new(t, wipdr_core::Point2::new(x, y)));
             }
             Kind::Beacon => {
                 check_count(v.len(), 8, 8).map_err(Ok)?;
@@ -640,11 +649,11 @@ impl<'l> Parser<'l> {
                     uuid: v[0].to_string(),
                     major: v[1].to_string(),
                     minor: v[2].to_string(),
-                    tx_power: parse_f64(v[3]).map_err(Ok)?,
+                    tx_power: Some(parse_f64(v[3]).map_err(Ok)?),
                     rssi_dbm: parse_f64(v[4]).map_err(Ok)?,
-                    distance: parse_f64(v[5]).map_err(Ok)?,
+                    distance: Some(parse_f64(v[5]).map_err(Ok)?),
                     mac: v[6].to_string(),
-                    seen_ms: parse_time(v[7]).ok_or(Ok(SkipKind::BadNumber))?,
+                    seen_ms: Some(parse_time(v[7]).ok_or(Ok(SkipKind::BadNumber))?),
                 };
                 self.walk.beacons.push(sample);
             }
@@ -871,7 +880,7 @@ fn accuracy_suffix(a: i8) -> String {
 /// use wipdr_core::{Point2, Walk, Waypoint};
 /// let mut walk = Walk::default();
 /// walk.meta.id = "w".into();
-/// walk.waypoints.push(Waypoint { t: 1000, position: Point2::new(1.0, 2.5) });
+/// walk.waypoints.push(Waypoint::new(1000, Point2::new(1.0, 2.5)));
 /// let mut bytes = Vec::new();
 /// wipdr_io::trace::write_walk(&walk, &mut bytes).unwrap();
 /// assert_eq!(String::from_utf8(bytes.clone()).unwrap(), "1000\tTYPE_WAYPOINT\t1.0\t2.5\n");
@@ -965,19 +974,25 @@ pub fn write_walk(walk: &Walk, out: &mut impl Write) -> io::Result<()> {
                     )?;
                 }
             }
-            Record::Beacon(b) => writeln!(
-                out,
-                "{}\tTYPE_BEACON\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
-                b.t,
-                clean(&b.uuid),
-                clean(&b.major),
-                clean(&b.minor),
-                num_int_if_integral(b.tx_power, "TYPE_BEACON tx power")?,
-                num_int_if_integral(b.rssi_dbm, "TYPE_BEACON rssi")?,
-                num(b.distance, "TYPE_BEACON distance")?,
-                clean(&b.mac),
-                b.seen_ms
-            )?,
+            Record::Beacon(b) => match (b.tx_power, b.distance, b.seen_ms) {
+                (Some(tx_power), Some(distance), Some(seen_ms)) => writeln!(
+                    out,
+                    "{}\tTYPE_BEACON\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+                    b.t,
+                    clean(&b.uuid),
+                    clean(&b.major),
+                    clean(&b.minor),
+                    num_int_if_integral(tx_power, "TYPE_BEACON tx power")?,
+                    num_int_if_integral(b.rssi_dbm, "TYPE_BEACON rssi")?,
+                    num(distance, "TYPE_BEACON distance")?,
+                    clean(&b.mac),
+                    seen_ms
+                )?,
+                _ => tracing::debug!(t = b.t, "beacon without the ILC power/distance/time fields: not written"),
+            },
+            Record::Pressure(p) => {
+                tracing::debug!(t = p.t, "pressure is not part of the ILC format: not written")
+            }
             Record::Waypoint(w) => writeln!(
                 out,
                 "{}\tTYPE_WAYPOINT\t{}\t{}",

@@ -114,10 +114,7 @@ fn write_floor(dir: &Path) {
     let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
     let mut w2 = Walk::default();
     w2.meta.id = "v".into();
-    w2.waypoints.push(Waypoint {
-        t: 5,
-        position: Point2::new(4.0, 4.0),
-    });
+    w2.waypoints.push(Waypoint::new(5, Point2::new(4.0, 4.0)));
     let mut w = sample_walk();
     w.meta.id = "w".into();
     floor::write_floor_dir(

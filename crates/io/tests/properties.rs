@@ -120,11 +120,11 @@ fn beacon() -> impl Strategy<Value = BeaconSample> {
                     uuid,
                     major,
                     minor,
-                    tx_power,
+                    tx_power: Some(tx_power),
                     rssi_dbm,
-                    distance,
+                    distance: Some(distance),
                     mac,
-                    seen_ms,
+                    seen_ms: Some(seen_ms),
                 }
             },
         )
@@ -151,6 +151,7 @@ fn meta() -> impl Strategy<Value = WalkMeta> {
                     android,
                     start_time: start,
                     end_time: end,
+                    route: None,
                 }
             },
         )
@@ -195,14 +196,12 @@ fn walk() -> impl Strategy<Value = Walk> {
                     meta,
                     waypoints: wps
                         .into_iter()
-                        .map(|(t, x, y)| Waypoint {
-                            t,
-                            position: Point2::new(x, y),
-                        })
+                        .map(|(t, x, y)| Waypoint::new(t, Point2::new(x, y)))
                         .collect(),
                     wifi,
                     beacons,
                     imu: Default::default(),
+                    pressure: Vec::new(),
                 };
                 w.imu.accelerometer = acc;
                 w.imu.gyroscope = gyr;
@@ -343,10 +342,7 @@ fn empty_input_gives_an_empty_report() {
 fn truncated_gzip_is_a_read_error() {
     let mut w = Walk::default();
     for i in 0..2000 {
-        w.waypoints.push(Waypoint {
-            t: i,
-            position: Point2::new(i as f64 * 0.37, 1.0 / (1.0 + i as f64)),
-        });
+        w.waypoints.push(Waypoint::new(i, Point2::new(i as f64 * 0.37, 1.0 / (1.0 + i as f64))));
     }
     let gz = gzip(&written(&w));
     let e = read_walk_from(&gz[..gz.len() / 2], "cut.txt.gz", &Limits::default()).unwrap_err();

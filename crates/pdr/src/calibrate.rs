@@ -361,10 +361,7 @@ mod tests {
     }
 
     fn wp(t: i64, x: f64, y: f64) -> Waypoint {
-        Waypoint {
-            t,
-            position: Point2::new(x, y),
-        }
+        Waypoint::new(t, Point2::new(x, y))
     }
 
     #[test]

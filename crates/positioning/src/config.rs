@@ -38,6 +38,9 @@ pub struct PositionerConfig {
     /// Start from the robust average of the fixes taken before the first step
     /// ([`StaticStartConfig`], paper 001 §3.2); `None`: off.
     pub static_start: Option<StaticStartConfig>,
+    /// The floor estimate from Wi-Fi and the barometer ([`crate::FloorConfig`], `[floor]`),
+    /// used when the radio map has floors.
+    pub floor: crate::FloorConfig,
     /// Seed of the random schemes (particle filters).
     pub seed: u64,
 }
@@ -52,6 +55,7 @@ impl Default for PositionerConfig {
                 .unwrap_or(SchemeConfig::Ekf(Default::default())),
             map_matching: false,
             static_start: None,
+            floor: crate::FloorConfig::default(),
             seed: 1,
         }
     }
@@ -98,6 +102,9 @@ impl PositionerConfig {
                 path: format!("scheme ({})", self.scheme.name()),
                 reason: e.to_string(),
             })?;
+        self.floor
+            .validate()
+            .map_err(|(path, reason)| PositioningError::InvalidConfig { path, reason })?;
         if let Some(age) = self.query.max_age_ms
             && age < 0
         {

@@ -50,6 +50,7 @@
 pub mod config;
 pub mod error;
 pub mod estimate;
+pub mod floor_tracker;
 pub mod merge;
 pub mod positioner;
 pub mod sample;
@@ -58,6 +59,7 @@ pub mod site;
 pub use config::PositionerConfig;
 pub use error::PositioningError;
 pub use estimate::PositionEstimate;
+pub use floor_tracker::{FloorConfig, FloorTracker};
 pub use positioner::{Event, Frontend, FusionStage, Positioner, StreamCounts, track_of};
 pub use sample::{PressureSample, Sample, samples_of};
 pub use site::{Site, WALKABLE_CELL_M, stream_seed};

@@ -3,7 +3,7 @@
 //! [`Positioner`] that chains them for one stream.
 
 use crate::sample::{PressureSample, Sample};
-use crate::{PositionEstimate, PositionerConfig, PositioningError, Site};
+use crate::{FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site};
 use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
@@ -35,9 +35,10 @@ pub struct StreamCounts {
     pub scans: u64,
     /// Scans the matcher could not use (no known AP left after filtering, ...).
     pub unmatched_scans: u64,
-    /// Pressure samples received (kept as the latest pressure; floor changes from the
-    /// barometer are not used yet).
+    /// Pressure samples received (the floor estimate's barometer input).
     pub pressure: u64,
+    /// Fixes none of whose candidates lie on the stream's current floor, dropped.
+    pub off_floor_fixes: u64,
 }
 
 /// PDR and the stream matcher: raw samples in, [`Event`]s out. Computes what the matchers
@@ -50,6 +51,7 @@ pub struct Frontend {
     moved: Vector2,
     last_t: Option<TimestampMs>,
     last_pressure: Option<PressureSample>,
+    floors: Option<FloorTracker>,
     counts: StreamCounts,
 }
 
@@ -63,8 +65,22 @@ impl std::fmt::Debug for Frontend {
 }
 
 impl Frontend {
-    /// A front end over a built matcher.
+    /// A front end over a built matcher, with the default [`FloorConfig`].
     pub fn new(pdr: PdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
+        Self::with_floor_config(pdr, matcher, FloorConfig::default())
+    }
+
+    /// A front end over a built matcher. When the matcher's radio map has floors, a
+    /// [`FloorTracker`] over them estimates the stream's floor from the fixes and the
+    /// barometer, and each fix is restricted to its candidates on that floor
+    /// ([`WifiObservation::on_floor`]; a fix with none there is dropped and counted).
+    pub fn with_floor_config(
+        pdr: PdrConfig,
+        matcher: Box<dyn OnlineMatcher>,
+        floor: FloorConfig,
+    ) -> Self {
+        let levels: Vec<i32> = matcher.map().points().iter().filter_map(|p| p.floor).collect();
+        let floors = (!levels.is_empty()).then(|| FloorTracker::new(levels, floor));
         Self {
             pdr: Pdr::new(pdr),
             matcher,
@@ -72,8 +88,14 @@ impl Frontend {
             moved: Vector2::zeros(),
             last_t: None,
             last_pressure: None,
+            floors,
             counts: StreamCounts::default(),
         }
+    }
+
+    /// The stream's current floor (`None` when the map has no floors, or before a fix).
+    pub fn floor(&self) -> Option<i32> {
+        self.floors.as_ref().and_then(FloorTracker::floor)
     }
 
     /// What the stream received so far.
@@ -106,6 +128,9 @@ impl Frontend {
                 if p.hpa.is_finite() {
                     self.counts.pressure += 1;
                     self.last_pressure = Some(*p);
+                    if let Some(floors) = &mut self.floors {
+                        floors.push_pressure(p);
+                    }
                 }
             }
             Sample::Wifi(scan) => return self.scan(scan).map(Event::Fix),
@@ -128,14 +153,27 @@ impl Frontend {
             displacement: self.moved,
         };
         self.moved = Vector2::zeros();
-        match self.matcher.locate_online(scan, &context) {
-            Ok(obs) => Some(obs),
+        let obs = match self.matcher.locate_online(scan, &context) {
+            Ok(obs) => obs,
             Err(e) => {
                 self.counts.unmatched_scans += 1;
                 tracing::trace!(t = scan.t, error = %e, "scan not matched");
-                None
+                return None;
             }
+        };
+        let Some(floors) = &mut self.floors else {
+            return Some(obs);
+        };
+        floors.push_fix(obs.t, obs.floor);
+        let Some(floor) = floors.floor() else {
+            return Some(obs);
+        };
+        let on_floor = obs.on_floor(floor);
+        if on_floor.is_none() {
+            self.counts.off_floor_fixes += 1;
+            tracing::trace!(t = scan.t, floor, fix_floor = ?obs.floor, "fix off the current floor dropped");
         }
+        on_floor
     }
 }
 
@@ -259,7 +297,11 @@ impl Positioner {
     ) -> Result<Self, PositioningError> {
         config.validate()?;
         Ok(Self {
-            frontend: Frontend::new(config.pdr, matcher.stream(config.query)),
+            frontend: Frontend::with_floor_config(
+                config.pdr,
+                matcher.stream(config.query),
+                config.floor,
+            ),
             fusion: FusionStage::new(site, config, config.seed, start)?,
         })
     }
@@ -273,7 +315,8 @@ impl Positioner {
     /// (and the scheme has an estimate); `None` otherwise (see [`Positioner::estimate`]).
     pub fn push(&mut self, sample: &Sample) -> Option<PositionEstimate> {
         let event = self.frontend.push(sample)?;
-        self.fusion.push(&event)
+        self.fusion.push(&event)?;
+        self.estimate()
     }
 
     /// Feeds an accelerometer sample (m/s², device frame).
@@ -314,9 +357,14 @@ impl Positioner {
         self.push(&Sample::Wifi(scan))
     }
 
-    /// The current estimate (`None` until the scheme has one).
+    /// The current estimate (`None` until the scheme has one), on the front end's floor
+    /// when the map has floors.
     pub fn estimate(&self) -> Option<PositionEstimate> {
-        self.fusion.estimate()
+        let mut e = self.fusion.estimate()?;
+        if self.frontend.floors.is_some() {
+            e.floor = self.frontend.floor();
+        }
+        Some(e)
     }
 
     /// What the stream received so far.

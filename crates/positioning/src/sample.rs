@@ -2,14 +2,7 @@
 
 use wipdr_core::{RotationVectorSample, TimestampMs, Vec3Sample, Walk, WifiScan};
 
-/// A barometer reading.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PressureSample {
-    /// Time (ms, the stream's clock).
-    pub t: TimestampMs,
-    /// Pressure, hPa (= mbar).
-    pub hpa: f64,
-}
+pub use wipdr_core::PressureSample;
 
 /// One raw sample of a phone's sensors, as a [`crate::Positioner`] takes them.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,14 +54,15 @@ impl Sample {
 /// samples in the same order. Waypoints (ground truth) are not samples and never streamed.
 pub fn samples_of(walk: &Walk) -> impl Iterator<Item = Sample> + '_ {
     let imu = &walk.imu;
-    let mut cursors = [0usize; 5];
+    let mut cursors = [0usize; 6];
     std::iter::from_fn(move || {
         let times = [
             imu.rotation_vector.get(cursors[0]).map(|s| s.t),
             imu.gyroscope.get(cursors[1]).map(|s| s.t),
             imu.magnetometer.get(cursors[2]).map(|s| s.t),
             imu.accelerometer.get(cursors[3]).map(|s| s.t),
-            walk.wifi.get(cursors[4]).map(|s| s.t),
+            walk.pressure.get(cursors[4]).map(|s| s.t),
+            walk.wifi.get(cursors[5]).map(|s| s.t),
         ];
         // The earliest; among equal times the lowest rank (array order = rank order).
         let (k, _) = times
@@ -83,6 +77,7 @@ pub fn samples_of(walk: &Walk) -> impl Iterator<Item = Sample> + '_ {
             1 => Sample::Gyroscope(imu.gyroscope[i]),
             2 => Sample::Magnetometer(imu.magnetometer[i]),
             3 => Sample::Accelerometer(imu.accelerometer[i]),
+            4 => Sample::Pressure(walk.pressure[i]),
             _ => Sample::Wifi(walk.wifi[i].clone()),
         })
     })
@@ -106,12 +101,13 @@ mod tests {
         let mut walk = Walk::default();
         walk.imu.accelerometer = vec![v(0), v(10), v(20)];
         walk.imu.gyroscope = vec![v(10)];
+        walk.pressure = vec![PressureSample { t: 10, hpa: 976.2 }];
         walk.wifi = vec![WifiScan {
             t: 10,
             entries: vec![WifiEntry::new(Bssid(1), -50.0)],
         }];
         let order: Vec<(TimestampMs, u8)> =
             samples_of(&walk).map(|s| (s.t(), s.tie_rank())).collect();
-        assert_eq!(order, vec![(0, 3), (10, 1), (10, 3), (10, 5), (20, 3)]);
+        assert_eq!(order, vec![(0, 3), (10, 1), (10, 3), (10, 4), (10, 5), (20, 3)]);
     }
 }

@@ -365,13 +365,10 @@ impl SimWorld {
             let p = position(t);
             let (nx, ny) = (rng.normal(), rng.normal());
             let noise = w.waypoint_noise_m;
-            waypoints.push(Waypoint {
-                t: t_ms,
-                position: Point2::new(
+            waypoints.push(Waypoint::new(t_ms, Point2::new(
                     round_to(p.x + noise * nx, 1e4),
                     round_to(p.y + noise * ny, 1e4),
-                ),
-            });
+                )));
         }
 
         let walk_id = self.walk_id(index);
@@ -387,11 +384,13 @@ impl SimWorld {
                 android: Some("sim".into()),
                 start_time: Some(start_ms),
                 end_time: Some(end_ms),
+                route: None,
             },
             waypoints,
             wifi,
             beacons: Vec::new(),
             imu,
+            pressure: Vec::new(),
         };
         let distance_m = steps.iter().map(|s| s.arc_length).sum();
         let truth = WalkTruth {

@@ -54,7 +54,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn inspect_walk(path: &Path, options: &ReadOptions) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let parsed = trace::read_walk_with(path, &options.limits)?;
+    let parsed = if wipdr_io::logfile::is_logfile(path) {
+        let log = wipdr_io::logfile::read_logfile(path, &options.limits)?;
+        // One logfile alone: its own ground truth places the frame.
+        let frame = wipdr_io::logfile_folder::frame_of(
+            log.ground_truth.iter().map(|g| (g.lat_deg, g.lon_deg)),
+        )
+        .map(|(f, _, _)| f);
+        match frame {
+            Some(frame) => log.into_walk(&frame),
+            None => ParsedWalk {
+                walk: log.walk,
+                report: log.report,
+            },
+        }
+    } else {
+        trace::read_walk_with(path, &options.limits)?
+    };
     let elapsed = t0.elapsed().as_secs_f64();
     let w = &parsed.walk;
     println!(
@@ -73,12 +89,13 @@ fn inspect_walk(path: &Path, options: &ReadOptions) -> anyhow::Result<()> {
         opt(&meta.android)
     );
     print_walk_table(std::slice::from_ref(&parsed));
+    print_floors(std::slice::from_ref(&parsed));
     print_report(&parsed.report, true);
     Ok(())
 }
 
 fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Result<()> {
-    let n_files = wipdr_io::floor::walk_files(dir)?.len();
+    let n_files = wipdr_io::floor::walk_files(wipdr_io::logfile_folder::logfile_dir(dir))?.len();
     let bar = crate::progress::bar(n_files as u64, "walks");
     let on_walk = || bar.inc(1);
     let t0 = Instant::now();
@@ -170,6 +187,7 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
         fmt_rate(rates[3]),
         fmt_rate(rates[4])
     );
+    print_floors(&floor.walks);
     let report = floor.total_report();
     print_report(&report, false);
     // Where to look: the first walks with skips of each kind.
@@ -258,6 +276,33 @@ fn print_walk_table(walks: &[ParsedWalk]) {
     }
 }
 
+/// Ground-truth floors and barometer readings, where the walks have them (IPIN logfiles).
+fn print_floors(walks: &[ParsedWalk]) {
+    let mut floors: std::collections::BTreeMap<i32, usize> = Default::default();
+    for w in walks.iter().flat_map(|p| &p.walk.waypoints) {
+        if let Some(f) = w.floor {
+            *floors.entry(f).or_default() += 1;
+        }
+    }
+    let pressure: usize = walks.iter().map(|p| p.walk.pressure.len()).sum();
+    let beacons: usize = walks.iter().map(|p| p.walk.beacons.len()).sum();
+    if floors.is_empty() && pressure == 0 && beacons == 0 {
+        return;
+    }
+    let listed: Vec<String> = floors.iter().map(|(f, n)| format!("{f}: {n}")).collect();
+    let changing = walks
+        .iter()
+        .filter(|p| {
+            let mut fs = p.walk.waypoints.iter().filter_map(|w| w.floor);
+            fs.next().is_some_and(|first| fs.any(|f| f != first))
+        })
+        .count();
+    println!(
+        "  waypoints by floor {{{}}}, {changing} walk(s) changing floor; {pressure} barometer readings, {beacons} BLE readings",
+        listed.join(", ")
+    );
+}
+
 fn print_report(r: &ParseReport, with_lines: bool) {
     println!(
         "  parse report: {} lines, {} headers, {} records kept, {} skipped",
@@ -288,6 +333,16 @@ fn print_report(r: &ParseReport, with_lines: bool) {
             .collect();
         println!("    unknown types: {}", unknown.join(", "));
     }
+    if !r.ignored.is_empty() {
+        let ignored: Vec<String> = r.ignored.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        println!("    known, not needed (counted): {}", ignored.join(", "));
+    }
+    if r.sensor_clock_outliers > 0 {
+        println!(
+            "    sensor samples timed by the app clock (sensor clock disagreed): {}",
+            r.sensor_clock_outliers
+        );
+    }
     println!(
         "    duplicate BSSIDs removed {}, run-on lines split {}{}, out-of-order records {} (latest by {:.1} s)",
         r.duplicate_bssids_removed,
@@ -315,10 +370,7 @@ mod tests {
         let mut walk = Walk::default();
         walk.meta.id = "w".into();
         for i in 0..3 {
-            walk.waypoints.push(Waypoint {
-                t: 1000 * i,
-                position: Point2::new(1.0 + i as f64, 5.0),
-            });
+            walk.waypoints.push(Waypoint::new(1000 * i, Point2::new(1.0 + i as f64, 5.0)));
         }
         let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
         let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);

@@ -299,6 +299,8 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             p75: num(base + 5)?,
             p95: num(base + 6)?,
             max: num(base + 7)?,
+            floor_hit_rate: None,
+            evaal: None,
         };
         rows.push(SweepRow {
             index: int(0)?,
