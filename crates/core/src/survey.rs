@@ -1,7 +1,7 @@
 //! A floor under evaluation: its plan and its recorded walks, whatever they were read from
 //! (ILC traces, IPIN logfiles, the Python package, walks built in code).
 
-use crate::{FloorPlan, Walk};
+use crate::{FloorPlan, GeoFrame, Walk};
 use serde::{Deserialize, Serialize};
 
 /// A floor = plan + walks. The evaluation protocol (`wipdr-eval`) takes these, so walks that
@@ -22,6 +22,10 @@ pub struct Floor {
     pub plan: FloorPlan,
     /// The walks, sorted by id (the protocol's folds are by sorted id).
     pub walks: Vec<Walk>,
+    /// The WGS84 frame of the metre coordinates, where known (IPIN logfiles): estimates can
+    /// then be written in latitude/longitude.
+    #[serde(default)]
+    pub geo_frame: Option<GeoFrame>,
 }
 
 impl Floor {
@@ -32,7 +36,14 @@ impl Floor {
             name: name.into(),
             plan,
             walks,
+            geo_frame: None,
         }
+    }
+
+    /// The floor with its metre frame placed in WGS84.
+    pub fn with_geo_frame(mut self, frame: GeoFrame) -> Self {
+        self.geo_frame = Some(frame);
+        self
     }
 
     /// The walk with id `id`.

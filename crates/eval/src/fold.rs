@@ -45,14 +45,35 @@ pub fn fold_count(floor: &FloorInput) -> usize {
 impl FoldModel {
     /// Learns fold `fold` of `floor` from its training walks under `cfg`.
     pub fn build(floor: &FloorInput, fold: usize, cfg: &EvalConfig) -> Result<Self, EvalError> {
-        let walks = &floor.data.walks;
         let folds = folds_of(floor);
-        let training: Vec<&Walk> = walks
-            .iter()
-            .zip(&folds)
-            .filter(|(_, f)| **f != fold)
-            .map(|(w, _)| w)
-            .collect();
+        let (test, training): (Vec<usize>, Vec<usize>) =
+            (0..folds.len()).partition(|&i| folds[i] == fold);
+        Self::build_on(floor, fold, &training, test, cfg)
+    }
+
+    /// Learns from every walk of `floor` but walk `index` (a walk located with all the
+    /// others as training data, as `wipdr locate` does for a logfile); the model's `fold` is
+    /// [`usize::MAX`] (no protocol fold).
+    pub fn build_all_but(
+        floor: &FloorInput,
+        index: usize,
+        cfg: &EvalConfig,
+    ) -> Result<Self, EvalError> {
+        let training: Vec<usize> = (0..floor.data.walks.len()).filter(|&i| i != index).collect();
+        Self::build_on(floor, usize::MAX, &training, vec![index], cfg)
+    }
+
+    /// Learns from the walks `training` (indices into the floor's walks), for the test walks
+    /// `test_walks`, labelled `fold`.
+    pub fn build_on(
+        floor: &FloorInput,
+        fold: usize,
+        training: &[usize],
+        test_walks: Vec<usize>,
+        cfg: &EvalConfig,
+    ) -> Result<Self, EvalError> {
+        let walks = &floor.data.walks;
+        let training: Vec<&Walk> = training.iter().filter_map(|&i| walks.get(i)).collect();
         let fp_err = |source| EvalError::Fingerprint {
             floor: floor.label.clone(),
             fold,
@@ -93,12 +114,6 @@ impl FoldModel {
         } else {
             cfg.pdr
         };
-        let test_walks = folds
-            .iter()
-            .enumerate()
-            .filter(|(_, f)| **f == fold)
-            .map(|(i, _)| i)
-            .collect();
         Ok(Self {
             fold,
             matcher,

@@ -288,7 +288,8 @@ impl FloorEnv {
 /// estimate recorded after every input. `env` is the floor's plan (walls, walkable space);
 /// `cfg` gives the wrappers (map matching, static start) and the seed (mixed with the walk's
 /// id). The `pdr` baseline starts at the true first waypoint (the protocol's one use of
-/// truth, labelled so) and its track begins there.
+/// truth, labelled so) and its track begins there: steps and fixes before that time are not
+/// fed (IPIN logfiles hold a minute of handling before the walk).
 pub fn run_scheme(
     scheme: &SchemeConfig,
     walk: &PreparedWalk,
@@ -321,6 +322,14 @@ pub fn run_scheme(
     }
     let (steps, fixes) = (&walk.steps, &walk.observations);
     for input in merged(steps, fixes) {
+        let t_input = match input {
+            FusionInput::Step(i) => steps[i].t,
+            FusionInput::Wifi(j) => fixes[j].t,
+        };
+        // A known start holds from its time: earlier inputs do not move it.
+        if start.is_some_and(|w| t_input < w.t) {
+            continue;
+        }
         let (t, estimate) = match input {
             FusionInput::Step(i) => (steps[i].t, stage.push_step(&steps[i])),
             FusionInput::Wifi(j) => (fixes[j].t, stage.push_fix(&fixes[j])),
@@ -343,6 +352,27 @@ pub fn locate(
     scheme: &str,
     cfg: &EvalConfig,
 ) -> Result<Vec<PositionEstimate>, EvalError> {
+    locate_with(floor, walk_id, scheme, cfg, Training::ProtocolFold)
+}
+
+/// Which walks give a located walk its radio map and calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Training {
+    /// The other folds' walks (the evaluation protocol: [`locate`] equals [`evaluate`]).
+    ProtocolFold,
+    /// Every other walk of the floor (a logfile located with all others, as a competitor
+    /// would).
+    AllOthers,
+}
+
+/// [`locate`] with a choice of training walks.
+pub fn locate_with(
+    floor: &FloorInput,
+    walk_id: &str,
+    scheme: &str,
+    cfg: &EvalConfig,
+    training: Training,
+) -> Result<Vec<PositionEstimate>, EvalError> {
     let walks = &floor.data.walks;
     let index = walks
         .iter()
@@ -351,9 +381,13 @@ pub fn locate(
             floor: floor.label.clone(),
             walk: walk_id.to_string(),
         })?;
-    check_enough_walks(floor)?;
-    let fold = crate::fold::folds_of(floor)[index];
-    let model = FoldModel::build(floor, fold, cfg)?;
+    let model = match training {
+        Training::ProtocolFold => {
+            check_enough_walks(floor)?;
+            FoldModel::build(floor, crate::fold::folds_of(floor)[index], cfg)?
+        }
+        Training::AllOthers => FoldModel::build_all_but(floor, index, cfg)?,
+    };
     let walk = &walks[index];
     let scheme_cfg = cfg.scheme(scheme)?;
     let start = (scheme_cfg.name() == "pdr")

@@ -97,11 +97,15 @@ impl FloorData {
     /// The floor in the core vocabulary (name, plan, walks), as the evaluation takes it; the
     /// parse reports and the GeoJSON frame stay here.
     pub fn into_floor(self) -> wipdr_core::Floor {
-        wipdr_core::Floor::new(
+        let floor = wipdr_core::Floor::new(
             self.name,
             self.plan,
             self.walks.into_iter().map(|w| w.walk).collect(),
-        )
+        );
+        match self.geo_frame {
+            Some(frame) => floor.with_geo_frame(frame),
+            None => floor,
+        }
     }
 
     /// The parse reports of all walks added up (line numbers are per walk and not merged).

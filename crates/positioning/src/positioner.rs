@@ -319,6 +319,13 @@ impl Positioner {
         self.estimate()
     }
 
+    /// Feeds one sample to the front end only (PDR attitude and filters, matcher state, floor
+    /// estimate), not to the fuser: the samples before a known start time, which must not
+    /// move the start.
+    pub fn warm_up(&mut self, sample: &Sample) {
+        let _ = self.frontend.push(sample);
+    }
+
     /// Feeds an accelerometer sample (m/s², device frame).
     pub fn push_accelerometer(&mut self, t: TimestampMs, v: [f64; 3]) -> Option<PositionEstimate> {
         self.push(&Sample::Accelerometer(Vec3Sample { t, v, accuracy: 3 }))
@@ -375,7 +382,9 @@ impl Positioner {
 
 /// A whole recorded stream through a [`Positioner`]: the track of estimates, one after each
 /// step or fix (and one at `start`'s time first when a start is given), as `wipdr locate`
-/// writes it and the evaluation scores it.
+/// writes it and the evaluation scores it. With a start, the samples before its time only
+/// warm the front end up ([`Positioner::warm_up`]): a step taken before the start does not
+/// move it.
 pub fn track_of(
     positioner: &mut Positioner,
     samples: impl IntoIterator<Item = Sample>,
@@ -388,6 +397,10 @@ pub fn track_of(
     }
     for s in samples {
         let t = s.t();
+        if start.is_some_and(|(t0, _)| t < t0) {
+            positioner.warm_up(&s);
+            continue;
+        }
         if let Some(mut e) = positioner.push(&s) {
             e.t = t;
             track.push(e);

@@ -77,13 +77,31 @@ pub fn evaluate_and_report(
     let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| pb.inc(1))?;
     pb.finish_and_clear();
     let unmatched: usize = prepared.iter().map(|p| p.unmatched_scans).sum();
-    let scans: usize = prepared.iter().map(|p| p.observations.len()).sum::<usize>() + unmatched;
+    let off_floor: usize = prepared.iter().map(|p| p.off_floor_fixes).sum();
+    let scans: usize = prepared.iter().map(|p| p.observations.len()).sum::<usize>()
+        + unmatched
+        + off_floor;
+    let folds: Vec<String> = floors
+        .iter()
+        .map(|f| {
+            let n = wipdr_eval::fold::fold_count(f);
+            if f.data.walks.iter().all(|w| w.meta.route.is_some()) {
+                format!("leave-one-route-out ({n} routes)")
+            } else {
+                format!("{n}-fold by walk")
+            }
+        })
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
     println!(
-        "{} test walks on {} floor(s), 5-fold by walk; {} scans ({} unmatched); {:.1} s",
+        "{} test walks on {} floor(s), {}; {} scans ({} unmatched, {} off the estimated floor); {:.1} s",
         prepared.len(),
         floors.len(),
+        folds.join(", "),
         scans,
         unmatched,
+        off_floor,
         started.elapsed().as_secs_f64()
     );
     println!(
