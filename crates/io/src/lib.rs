@@ -68,6 +68,7 @@ pub mod geojson;
 pub mod limits;
 pub mod logfile;
 pub mod logfile_folder;
+pub mod site;
 pub mod trace;
 
 pub use cache::read_floor_dir_cached;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::imu::mean_rate_hz;
 use wipdr_core::{Bssid, Walk};
-use wipdr_io::cache::{self, CacheOutcome};
+use wipdr_io::cache::CacheOutcome;
 use wipdr_io::floor::{FloorData, ReadOptions};
 use wipdr_io::trace::{self, ParseReport, ParsedWalk};
 
@@ -101,7 +101,7 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
     let t0 = Instant::now();
     let settings = crate::data::cache_settings();
     let (floor, outcome): (FloorData, CacheOutcome) =
-        cache::read_floor(dir, &settings, options, &on_walk)?;
+        crate::data::read_any(dir, &settings, options, &on_walk)?;
     let elapsed = t0.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let at = settings.dir.display();
