@@ -179,7 +179,8 @@ mod tests {
         let dir = tmp.path().join("site").join("F2");
         let mut walk = Walk::default();
         walk.meta.id = "good".into();
-        walk.waypoints.push(Waypoint::new(1000, Point2::new(1.0, 5.0)));
+        walk.waypoints
+            .push(Waypoint::new(1000, Point2::new(1.0, 5.0)));
         let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
         let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);
         floor::write_floor_dir(&dir, &plan, bbox, [&walk]).unwrap();

@@ -19,7 +19,8 @@ fn make_floor(root: &Path) -> (PathBuf, PathBuf) {
     let mut walk = Walk::default();
     walk.meta.id = "w".into();
     for i in 0..3 {
-        walk.waypoints.push(Waypoint::new(1000 * i, Point2::new(1.0 + i as f64, 5.0)));
+        walk.waypoints
+            .push(Waypoint::new(1000 * i, Point2::new(1.0 + i as f64, 5.0)));
     }
     let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
     floor::write_floor_dir(

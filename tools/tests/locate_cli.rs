@@ -9,19 +9,8 @@ fn fixture_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"))
 }
 
-fn wipdr(args: &[&str], cwd: &std::path::Path) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_wipdr"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("wipdr runs");
-    assert!(
-        out.status.success(),
-        "wipdr {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod common;
+use common::wipdr;
 
 #[test]
 fn locate_csv_scores_as_eval_json_for_every_scheme() {

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use wipdr_core::{Point2, TimestampMs, Walk};
 use wipdr_fingerprint::MatcherModel;
 use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};
+use wipdr_fingerprint::radio_map::per_floor;
 use wipdr_fingerprint::walk_map::build_from_walks;
 use wipdr_fusion::trails::{TrailRaster, trails_of};
 use wipdr_pdr::PdrConfig;
@@ -59,7 +60,9 @@ impl FoldModel {
         index: usize,
         cfg: &EvalConfig,
     ) -> Result<Self, EvalError> {
-        let training: Vec<usize> = (0..floor.data.walks.len()).filter(|&i| i != index).collect();
+        let training: Vec<usize> = (0..floor.data.walks.len())
+            .filter(|&i| i != index)
+            .collect();
         Self::build_on(floor, usize::MAX, &training, vec![index], cfg)
     }
 
@@ -85,10 +88,13 @@ impl FoldModel {
         let mut coverage: Arc<Vec<Point2>> =
             Arc::new(map.points().iter().map(|p| p.position).collect());
         if let Some(prop) = &cfg.propagation {
-            let models = fit_ap_models(&map, prop).map_err(fp_err)?;
             let plan = &floor.data.plan;
-            let extended = extend_radio_map(&mut map, &models, prop, |p| {
-                plan.outline.is_empty() || plan.is_walkable(p)
+            // Per floor: an AP's path-loss model is fitted on (and extends) one floor.
+            let extended = per_floor(&mut map, |m| {
+                let models = fit_ap_models(m, prop)?;
+                extend_radio_map(m, &models, prop, |p| {
+                    plan.outline.is_empty() || plan.is_walkable(p)
+                })
             })
             .map_err(fp_err)?;
             tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");

@@ -324,6 +324,25 @@ pub struct InterpolationReport {
     pub spatial_points: usize,
 }
 
+impl InterpolationReport {
+    /// The counts of two reports added (runs on several floors).
+    pub fn add(&self, o: &Self) -> Self {
+        Self {
+            pairs: self.pairs + o.pairs,
+            pairs_too_long_ms: self.pairs_too_long_ms + o.pairs_too_long_ms,
+            pairs_too_far_m: self.pairs_too_far_m + o.pairs_too_far_m,
+            pairs_too_few_shared: self.pairs_too_few_shared + o.pairs_too_few_shared,
+            along_walk_off_chord: self.along_walk_off_chord + o.along_walk_off_chord,
+            along_walk_points: self.along_walk_points + o.along_walk_points,
+            lattice_candidates: self.lattice_candidates + o.lattice_candidates,
+            lattice_too_few_sources: self.lattice_too_few_sources + o.lattice_too_few_sources,
+            lattice_too_close: self.lattice_too_close + o.lattice_too_close,
+            lattice_nothing_heard: self.lattice_nothing_heard + o.lattice_nothing_heard,
+            spatial_points: self.spatial_points + o.spatial_points,
+        }
+    }
+}
+
 /// Fingerprints between consecutive scans of **one** walk (`scans` in time order).
 ///
 /// `position_at(t)` gives the walk's position at a label time (the waypoint interpolation);

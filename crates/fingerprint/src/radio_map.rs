@@ -147,6 +147,31 @@ impl ApVocabulary {
     }
 }
 
+/// Runs `extend` (an operation that appends points to a map: interpolation, the path-loss
+/// extension) on each floor of `map` apart, and appends what it made to `map` on that floor;
+/// a map of one floor (or none) is extended in place. Returns each run's result, floors in
+/// order. Keeps floors apart: nothing made on one floor is computed from another's points.
+pub fn per_floor<R>(
+    map: &mut RadioMap,
+    mut extend: impl FnMut(&mut RadioMap) -> Result<R, FingerprintError>,
+) -> Result<Vec<R>, FingerprintError> {
+    let floors = map.floors();
+    if floors.len() < 2 {
+        return Ok(vec![extend(map)?]);
+    }
+    let mut out = Vec::with_capacity(floors.len());
+    for floor in floors {
+        let members: Vec<usize> = (0..map.len())
+            .filter(|&i| map.point(i).floor == floor)
+            .collect();
+        let mut sub = map.subset(&members);
+        let before = sub.len();
+        out.push(extend(&mut sub)?);
+        map.append_points_from(&sub, before, floor)?;
+    }
+    Ok(out)
+}
+
 /// One reference point: where it is and how many scans went into it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ReferencePoint {
@@ -420,6 +445,43 @@ impl RadioMap {
                 .extend_from_slice(&self.spread_db[i * m..(i + 1) * m]);
         }
         out
+    }
+
+    /// Appends the points of `other` from index `from` on (same vocabulary and layout), with
+    /// their floor set to `floor`.
+    pub fn append_points_from(
+        &mut self,
+        other: &RadioMap,
+        from: usize,
+        floor: Option<i32>,
+    ) -> Result<(), FingerprintError> {
+        let m = self.n_aps();
+        if other.n_aps() != m {
+            return Err(FingerprintError::DimensionMismatch {
+                expected: m,
+                found: other.n_aps(),
+            });
+        }
+        for i in from..other.len() {
+            let mut p = other.points[i];
+            p.floor = floor;
+            self.points.push(p);
+            self.mean_dbm
+                .extend_from_slice(&other.mean_dbm[i * m..(i + 1) * m]);
+            self.counts
+                .extend_from_slice(&other.counts[i * m..(i + 1) * m]);
+            self.spread_db
+                .extend_from_slice(&other.spread_db[i * m..(i + 1) * m]);
+        }
+        Ok(())
+    }
+
+    /// The distinct floors of the points (`None` for points without one), sorted.
+    pub fn floors(&self) -> Vec<Option<i32>> {
+        let mut floors: Vec<Option<i32>> = self.points.iter().map(|p| p.floor).collect();
+        floors.sort_unstable();
+        floors.dedup();
+        floors
     }
 
     /// Serialises the map with bincode (standard configuration).

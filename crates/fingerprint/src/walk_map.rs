@@ -266,7 +266,11 @@ where
     if let Some(interp) = &config.interpolation {
         // Spatial first: its sources are the measured points only.
         if let Some(sp) = &interp.spatial {
-            report.interpolation = densify_spatially(&mut map, sp)?;
+            // Per floor: a lattice point never averages fingerprints of two floors.
+            let reports = crate::radio_map::per_floor(&mut map, |m| densify_spatially(m, sp))?;
+            report.interpolation = reports
+                .into_iter()
+                .fold(InterpolationReport::default(), |a, b| a.add(&b));
         }
         if let Some(aw) = &interp.along_walk {
             let mut by_walk: Vec<Vec<usize>> = vec![Vec::new(); walks.len()];
@@ -289,8 +293,13 @@ where
                     aw,
                     &mut report.interpolation,
                 )?;
-                push_interpolated(&mut map, &made, |_| {
-                    point(Point2::origin(), 0, config.floor)
+                // An along-walk point is on the floor of its nearest scan.
+                push_interpolated(&mut map, &made, |k| {
+                    let floor = made
+                        .get(k)
+                        .and_then(|p| members.get(p.nearest_source))
+                        .and_then(|&i| prints[i].floor);
+                    point(Point2::origin(), 0, floor)
                 })?;
             }
         }

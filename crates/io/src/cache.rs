@@ -57,9 +57,8 @@ use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 use wipdr_core::{
-    GeoFrame, PressureSample,
-    BeaconSample, FloorPlan, ImuStreams, RotationVectorSample, UncalibratedSample, Vec3Sample,
-    Walk, WalkMeta, Waypoint, WifiScan,
+    BeaconSample, FloorPlan, GeoFrame, ImuStreams, PressureSample, RotationVectorSample,
+    UncalibratedSample, Vec3Sample, Walk, WalkMeta, Waypoint, WifiScan,
 };
 
 /// Default cache folder, relative to the working directory.

@@ -14,7 +14,8 @@ fn make_floor(dir: &Path) {
 fn write_walk(dir: &Path, id: &str, n: usize) {
     let mut w = Walk::default();
     for i in 0..n {
-        w.waypoints.push(Waypoint::new(i as i64, Point2::new(1.0, 1.0)));
+        w.waypoints
+            .push(Waypoint::new(i as i64, Point2::new(1.0, 1.0)));
     }
     trace::write_walk_file(&w, dir.join(floor::WALKS_DIR).join(format!("{id}.txt"))).unwrap();
 }

@@ -458,7 +458,10 @@ mod tests {
             .map(|(i, id)| {
                 let mut w = Walk::default();
                 w.meta.id = id.to_string();
-                w.waypoints.push(Waypoint::new(10 + i as i64, Point2::new(1.0 + i as f64, 2.0)));
+                w.waypoints.push(Waypoint::new(
+                    10 + i as i64,
+                    Point2::new(1.0 + i as f64, 2.0),
+                ));
                 w
             })
             .collect();
@@ -491,7 +494,10 @@ mod tests {
                 let mut w = Walk::default();
                 w.meta.id = id.to_string();
                 for i in 0..n {
-                    w.waypoints.push(Waypoint::new(1000 * i as i64, Point2::new(1.0 + i as f64, 2.0)));
+                    w.waypoints.push(Waypoint::new(
+                        1000 * i as i64,
+                        Point2::new(1.0 + i as f64, 2.0),
+                    ));
                 }
                 w
             })

@@ -3,7 +3,9 @@
 //! Brings the recorded inputs of every paper's evaluation into the [`wipdr_core`] vocabulary:
 //! the Indoor Location Competition 2.0 walks (smartphone IMU, Wi-Fi scans and surveyed
 //! waypoints; the real-data setting of papers 000 §4, 001 §4, 002 §5 and 004 §5, see
-//! `../shared/docs/evaluation.md`), their floor plans, and the public fingerprint benchmarks.
+//! `../shared/docs/evaluation.md`), their floor plans, the IPIN competition's logfiles (the
+//! field's second benchmark, with floors and a barometer), and the public fingerprint
+//! benchmarks.
 //! It also writes walks and plans in the same formats, so synthetic floors (crate `wipdr-sim`)
 //! go through the real readers.
 //!
@@ -16,6 +18,14 @@
 //!   one scan, keeps the most recent entry of a BSSID listed twice, splits run-on lines, and
 //!   skips unknown or malformed records, counting them by kind with line numbers in a
 //!   [`trace::ParseReport`]. [`trace::write_walk`] writes the same format deterministically.
+//! - [`logfile`]: IPIN competition logfiles (GetSensorData app, `;`-separated, `%` header):
+//!   fixed field positions, sensor times from the SensorTimestamp on the AppTimestamp clock,
+//!   one Wi-Fi scan per run of lines sharing an AppTimestamp, POSI ground truth in degrees
+//!   with floors; GNSS and the other unneeded types counted. [`logfile::write_logfile`]
+//!   writes the format (fixtures). [`logfile_folder`]: a folder of them as one building, in
+//!   a WGS84 tangent-plane metre frame ([`wipdr_core::GeoFrame`]).
+//! - [`site`]: an ILC site folder (`F1/`, `F2/`, ...) as one building, levels from the floor
+//!   folder names.
 //! - [`floor`]: an ILC floor folder (`floor_info.json`, `geojson_map.json`,
 //!   `path_data_files/*.txt.gz`), walks read in parallel (rayon); a walk file that cannot
 //!   be read is skipped, logged and kept with its error in [`floor::FloorData::skipped_walks`]

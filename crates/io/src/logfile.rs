@@ -550,8 +550,8 @@ impl<'l> Parser<'l> {
             .ok()
             .filter(|v| v.abs() <= MAX_ABS_FLOOR)
             .ok_or(Ok(SkipKind::OutOfRange))?;
-        let building = i32::try_from(parse_int(f[6]).map_err(Ok)?)
-            .map_err(|_| Ok(SkipKind::OutOfRange))?;
+        let building =
+            i32::try_from(parse_int(f[6]).map_err(Ok)?).map_err(|_| Ok(SkipKind::OutOfRange))?;
         self.ground_truth.push(GroundTruthPoint {
             t,
             counter,
@@ -691,6 +691,160 @@ fn parse<R: BufRead>(
     Ok(parser.finish())
 }
 
+/// Writes a walk as a GetSensorData logfile (for fixtures and round trips through
+/// [`read_logfile_from`]): a `%` header with the phone, `ACCE`/`GYRO`/`MAGN`/`AHRS` (the
+/// rotation vector as the quaternion's vector part, angles from it), `PRES`, `WIFI` (one line
+/// per entry, all with the scan's AppTimestamp), `BLE4` iBeacon lines and `POSI` (waypoints
+/// placed in degrees by `frame`, floor 0 where unknown, building `building`), in time order.
+/// Times are written in seconds with millisecond digits; SensorTimestamp = AppTimestamp +
+/// 1000 s. Non-finite values are refused (`InvalidInput`).
+///
+/// ```
+/// use wipdr_core::{GeoFrame, Point2, Walk, Waypoint};
+/// use wipdr_io::logfile::{read_logfile_from, write_logfile};
+/// let frame = GeoFrame::new(49.46, 11.11)?;
+/// let mut walk = Walk::default();
+/// walk.waypoints.push(Waypoint::new(61_000, Point2::new(3.0, 4.0)).on_floor(-2));
+/// let mut text = Vec::new();
+/// write_logfile(&walk, &frame, 100, &mut text)?;
+/// let back = read_logfile_from(&text[..], "w", &Default::default())?.into_walk(&frame).walk;
+/// assert_eq!(back.waypoints[0].floor, Some(-2));
+/// assert!((back.waypoints[0].position - Point2::new(3.0, 4.0)).norm() < 1e-6);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn write_logfile(
+    walk: &Walk,
+    frame: &GeoFrame,
+    building: i32,
+    out: &mut impl io::Write,
+) -> io::Result<()> {
+    use wipdr_core::walk::Record;
+    let finite = |v: &[f64], what: &str| -> io::Result<()> {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("non-finite {what} value"),
+            ))
+        }
+    };
+    let s = |t: TimestampMs| t as f64 / 1000.0;
+    let meta = &walk.meta;
+    writeln!(out, "% LogFile created by wipdr (GetSensorData format)")?;
+    writeln!(
+        out,
+        "% Manufacturer:            \t{}",
+        meta.brand.as_deref().unwrap_or("wipdr")
+    )?;
+    writeln!(
+        out,
+        "% Model:                   \t{}",
+        meta.model.as_deref().unwrap_or("sim")
+    )?;
+    writeln!(
+        out,
+        "% POSI Reference:    \t\t'POSI;Timestamp(s);Counter;Latitude(degrees); Longitude(degrees);floor ID(0,1,2..4);Building ID(0,1,2..3);'"
+    )?;
+    let mut counter = 0;
+    for record in walk.replay() {
+        match record {
+            Record::Accelerometer(v) | Record::Gyroscope(v) | Record::Magnetometer(v) => {
+                finite(&v.v, "IMU")?;
+                let ty = match record {
+                    Record::Accelerometer(_) => "ACCE",
+                    Record::Gyroscope(_) => "GYRO",
+                    _ => "MAGN",
+                };
+                writeln!(
+                    out,
+                    "{ty};{:.3};{:.3};{:?};{:?};{:?};{}",
+                    s(v.t),
+                    s(v.t) + 1000.0,
+                    v.v[0],
+                    v.v[1],
+                    v.v[2],
+                    v.accuracy.max(0)
+                )?;
+            }
+            Record::RotationVector(r) => {
+                finite(&r.v, "rotation vector")?;
+                let [w, x, y, z] = r.quaternion();
+                let pitch = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+                let roll = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+                let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+                writeln!(
+                    out,
+                    "AHRS;{:.3};{:.3};{:.6};{:.6};{:.6};{:?};{:?};{:?};{}",
+                    s(r.t),
+                    s(r.t) + 1000.0,
+                    pitch.to_degrees(),
+                    roll.to_degrees(),
+                    yaw.to_degrees(),
+                    r.v[0],
+                    r.v[1],
+                    r.v[2],
+                    r.accuracy.max(0)
+                )?;
+            }
+            Record::Pressure(p) => {
+                finite(&[p.hpa], "pressure")?;
+                writeln!(
+                    out,
+                    "PRES;{:.3};{:.3};{:?};3",
+                    s(p.t),
+                    s(p.t) + 1000.0,
+                    p.hpa
+                )?;
+            }
+            Record::Wifi(scan) => {
+                for e in &scan.entries {
+                    finite(&[e.rssi_dbm], "RSSI")?;
+                    writeln!(
+                        out,
+                        "WIFI;{:.3};{:.3};{};{};{};{}",
+                        s(scan.t),
+                        s(scan.t) + 1000.0,
+                        e.ssid.replace([';', '\n', '\r'], " "),
+                        e.bssid,
+                        e.frequency_mhz,
+                        e.rssi_dbm
+                    )?;
+                }
+            }
+            Record::Beacon(b) => {
+                finite(&[b.rssi_dbm], "beacon RSSI")?;
+                writeln!(
+                    out,
+                    "BLE4;{:.3};iBeacon;{};{};{};{};{};{}",
+                    s(b.t),
+                    b.mac.replace(';', " "),
+                    b.rssi_dbm,
+                    b.tx_power.unwrap_or(-59.0),
+                    b.major.replace(';', " "),
+                    b.minor.replace(';', " "),
+                    b.uuid.replace(';', " ")
+                )?;
+            }
+            Record::Waypoint(w) => {
+                finite(&[w.position.x, w.position.y], "waypoint")?;
+                counter += 1;
+                let (lat, lon) = frame.to_lat_lon(w.position);
+                writeln!(
+                    out,
+                    "POSI;{:.3};{counter};{lat:.12};{lon:.12};{};{building}",
+                    s(w.t),
+                    w.floor.unwrap_or(0)
+                )?;
+            }
+            Record::AccelerometerUncalibrated(_)
+            | Record::GyroscopeUncalibrated(_)
+            | Record::MagnetometerUncalibrated(_) => {}
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -725,9 +879,8 @@ mod tests {
 
     #[test]
     fn a_sensor_clock_jump_keeps_the_app_time_and_is_counted() {
-        let log = read(
-            "GYRO;1.00;500.00;0;0;0;3\nGYRO;1.02;500.02;0;0;0;3\nGYRO;1.04;900.04;0;0;0;3\n",
-        );
+        let log =
+            read("GYRO;1.00;500.00;0;0;0;3\nGYRO;1.02;500.02;0;0;0;3\nGYRO;1.04;900.04;0;0;0;3\n");
         assert_eq!(log.report.sensor_clock_outliers, 1);
         assert_eq!(log.walk.imu.gyroscope[2].t, 1040);
     }

@@ -59,11 +59,7 @@ pub fn frame_of(points: impl IntoIterator<Item = (f64, f64)>) -> Option<(GeoFram
         .shifted_to(Point2::new(-FRAME_MARGIN_M, -FRAME_MARGIN_M))
         .ok()?;
     let far = frame.to_local(lat1, lon1);
-    Some((
-        frame,
-        far.x + FRAME_MARGIN_M,
-        far.y + FRAME_MARGIN_M,
-    ))
+    Some((frame, far.x + FRAME_MARGIN_M, far.y + FRAME_MARGIN_M))
 }
 
 /// Reads a folder of logfiles as one [`FloorData`] (all floors; see the module docs).
@@ -134,13 +130,12 @@ pub fn read_logfile_dir_with_progress(
         path: dir.to_path_buf(),
         message: "no POSI ground truth in any logfile: the metre frame is placed on it".into(),
     })?;
-    let plan = FloorPlan::new(width, height, Vec::new(), Vec::new()).map_err(|e| {
-        IoError::Invalid {
+    let plan =
+        FloorPlan::new(width, height, Vec::new(), Vec::new()).map_err(|e| IoError::Invalid {
             path: dir.to_path_buf(),
             field: "POSI latitude/longitude".into(),
             message: e.to_string(),
-        }
-    })?;
+        })?;
     let (south, west) = frame.to_lat_lon(Point2::new(0.0, 0.0));
     let (north, east) = frame.to_lat_lon(Point2::new(width, height));
     let mut walks: Vec<ParsedWalk> = logs.into_iter().map(|l| l.into_walk(&frame)).collect();
@@ -177,8 +172,14 @@ mod tests {
         let tol = 1e-3;
         for (lat, lon) in pts {
             let p = frame.to_local(lat, lon);
-            assert!(p.x >= FRAME_MARGIN_M - tol && p.x <= w - FRAME_MARGIN_M + tol, "{p:?}");
-            assert!(p.y >= FRAME_MARGIN_M - tol && p.y <= h - FRAME_MARGIN_M + tol, "{p:?}");
+            assert!(
+                p.x >= FRAME_MARGIN_M - tol && p.x <= w - FRAME_MARGIN_M + tol,
+                "{p:?}"
+            );
+            assert!(
+                p.y >= FRAME_MARGIN_M - tol && p.y <= h - FRAME_MARGIN_M + tol,
+                "{p:?}"
+            );
         }
         assert!(frame_of(std::iter::empty()).is_none());
     }
@@ -193,7 +194,11 @@ mod tests {
             "% GetSensorData\nPOSI;1;1;49.4611;11.1109;0;100\nPOSI;9;2;49.4612;11.1110;0;100\n",
         )
         .unwrap();
-        std::fs::write(trials.join("X_Trial02_repetition01.txt"), format!("% h\n{}\n", "x".repeat(100))).unwrap();
+        std::fs::write(
+            trials.join("X_Trial02_repetition01.txt"),
+            format!("% h\n{}\n", "x".repeat(100)),
+        )
+        .unwrap();
         let options = ReadOptions {
             limits: crate::Limits {
                 max_line_bytes: 64,

@@ -12,10 +12,10 @@
 //! building's plan is the largest floor's extent without outline or walls (walls are per
 //! floor; the per-floor evaluation keeps them).
 
+use crate::IoError;
 use crate::cache::{self, CacheSettings};
 use crate::floor::{self, FloorData, ReadOptions};
 use crate::geojson::LonLatBox;
-use crate::IoError;
 use std::path::{Path, PathBuf};
 use wipdr_core::FloorPlan;
 
@@ -118,13 +118,12 @@ pub fn read_site_dir(
         skipped_walks.extend(data.skipped_walks);
     }
     walks.sort_by(|a, b| a.walk.meta.id.cmp(&b.walk.meta.id));
-    let plan = FloorPlan::new(width, height, Vec::new(), Vec::new()).map_err(|e| {
-        IoError::Invalid {
+    let plan =
+        FloorPlan::new(width, height, Vec::new(), Vec::new()).map_err(|e| IoError::Invalid {
             path: dir.to_path_buf(),
             field: "floor_info.json".into(),
             message: e.to_string(),
-        }
-    })?;
+        })?;
     let data = FloorData {
         name: floor::floor_name(dir),
         dir: dir.to_path_buf(),
@@ -151,7 +150,13 @@ mod tests {
 
     #[test]
     fn levels_of_names() {
-        for (name, level) in [("F1", Some(0)), ("f2", Some(1)), ("1F", Some(0)), ("B1", Some(-1)), ("2B", Some(-2))] {
+        for (name, level) in [
+            ("F1", Some(0)),
+            ("f2", Some(1)),
+            ("1F", Some(0)),
+            ("B1", Some(-1)),
+            ("2B", Some(-2)),
+        ] {
             assert_eq!(level_of_floor_name(name), level, "{name}");
         }
         for name in ["F0", "F", "B", "Fx", "F1234", "G", ""] {
@@ -167,8 +172,10 @@ mod tests {
             let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
             let mut walk = wipdr_core::Walk::default();
             walk.meta.id = format!("w{name}");
-            walk.waypoints
-                .push(wipdr_core::Waypoint::new(1000, wipdr_core::Point2::new(x, 1.0)));
+            walk.waypoints.push(wipdr_core::Waypoint::new(
+                1000,
+                wipdr_core::Point2::new(x, 1.0),
+            ));
             floor::write_floor_dir(
                 site.join(name),
                 &plan,
@@ -179,17 +186,33 @@ mod tests {
         }
         assert!(is_site_dir(&site));
         assert!(!is_site_dir(&site.join("F1")));
-        let (data, outcomes) =
-            read_site_dir(&site, &CacheSettings::disabled(), &ReadOptions::default(), &|| {})
-                .unwrap();
+        let (data, outcomes) = read_site_dir(
+            &site,
+            &CacheSettings::disabled(),
+            &ReadOptions::default(),
+            &|| {},
+        )
+        .unwrap();
         assert_eq!(outcomes.len(), 2);
-        let floors: Vec<Option<i32>> =
-            data.walks.iter().map(|w| w.walk.waypoints[0].floor).collect();
+        let floors: Vec<Option<i32>> = data
+            .walks
+            .iter()
+            .map(|w| w.walk.waypoints[0].floor)
+            .collect();
         assert_eq!(floors, vec![Some(0), Some(1)]);
         std::fs::create_dir_all(site.join("lobby")).unwrap();
-        std::fs::copy(site.join("F1").join(floor::FLOOR_INFO), site.join("lobby").join(floor::FLOOR_INFO)).unwrap();
-        let e = read_site_dir(&site, &CacheSettings::disabled(), &ReadOptions::default(), &|| {})
-            .unwrap_err();
+        std::fs::copy(
+            site.join("F1").join(floor::FLOOR_INFO),
+            site.join("lobby").join(floor::FLOOR_INFO),
+        )
+        .unwrap();
+        let e = read_site_dir(
+            &site,
+            &CacheSettings::disabled(),
+            &ReadOptions::default(),
+            &|| {},
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("lobby"), "{e}");
     }
 }

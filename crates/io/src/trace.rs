@@ -640,7 +640,9 @@ impl<'l> Parser<'l> {
                 let x = parse_f64(v[0]).map_err(Ok)?;
                 let y = parse_f64(v[1]).map_err(Ok)?;
                 in_range(&[x, y], MAX_ABS_COORDINATE_M).map_err(Ok)?;
-                self.walk.waypoints.push(Waypoint::new(t, wipdr_core::Point2::new(x, y)));
+                self.walk
+                    .waypoints
+                    .push(Waypoint::new(t, wipdr_core::Point2::new(x, y)));
             }
             Kind::Beacon => {
                 check_count(v.len(), 8, 8).map_err(Ok)?;
@@ -988,10 +990,16 @@ pub fn write_walk(walk: &Walk, out: &mut impl Write) -> io::Result<()> {
                     clean(&b.mac),
                     seen_ms
                 )?,
-                _ => tracing::debug!(t = b.t, "beacon without the ILC power/distance/time fields: not written"),
+                _ => tracing::debug!(
+                    t = b.t,
+                    "beacon without the ILC power/distance/time fields: not written"
+                ),
             },
             Record::Pressure(p) => {
-                tracing::debug!(t = p.t, "pressure is not part of the ILC format: not written")
+                tracing::debug!(
+                    t = p.t,
+                    "pressure is not part of the ILC format: not written"
+                )
             }
             Record::Waypoint(w) => writeln!(
                 out,

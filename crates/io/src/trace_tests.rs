@@ -175,7 +175,8 @@ fn gz_file_round_trip() {
 #[test]
 fn writer_refuses_non_finite() {
     let mut w = Walk::default();
-    w.waypoints.push(Waypoint::new(1, wipdr_core::Point2::new(f64::NAN, 0.0)));
+    w.waypoints
+        .push(Waypoint::new(1, wipdr_core::Point2::new(f64::NAN, 0.0)));
     let e = write_walk(&w, &mut Vec::new()).unwrap_err();
     assert_eq!(e.kind(), io::ErrorKind::InvalidInput);
 }

@@ -103,7 +103,8 @@ fn floor_with(root: &Path, waypoints: &[(f64, f64)]) -> PathBuf {
     let mut walk = Walk::default();
     walk.meta.id = "w".into();
     for (i, &(x, y)) in waypoints.iter().enumerate() {
-        walk.waypoints.push(Waypoint::new(1000 * i as i64, Point2::new(x, y)));
+        walk.waypoints
+            .push(Waypoint::new(1000 * i as i64, Point2::new(x, y)));
     }
     let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
     floor::write_floor_dir(

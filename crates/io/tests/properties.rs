@@ -342,7 +342,10 @@ fn empty_input_gives_an_empty_report() {
 fn truncated_gzip_is_a_read_error() {
     let mut w = Walk::default();
     for i in 0..2000 {
-        w.waypoints.push(Waypoint::new(i, Point2::new(i as f64 * 0.37, 1.0 / (1.0 + i as f64))));
+        w.waypoints.push(Waypoint::new(
+            i,
+            Point2::new(i as f64 * 0.37, 1.0 / (1.0 + i as f64)),
+        ));
     }
     let gz = gzip(&written(&w));
     let e = read_walk_from(&gz[..gz.len() / 2], "cut.txt.gz", &Limits::default()).unwrap_err();

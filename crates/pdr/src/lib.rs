@@ -43,6 +43,7 @@ pub mod calibrate;
 pub mod detector;
 pub mod error_model;
 pub mod filter;
+pub mod handling;
 pub mod length;
 pub mod motion;
 pub mod pipeline;

@@ -105,6 +105,8 @@ pub struct PdrConfig {
     pub vertical: VerticalConfig,
     /// Motion state.
     pub motion: MotionConfig,
+    /// Handling gate: no steps while the phone is turned over in the hand.
+    pub handling: crate::handling::HandlingConfig,
     /// Step lengths are clamped to at least this, m.
     pub min_step_length: f64,
     /// ... and at most this, m.
@@ -121,6 +123,7 @@ impl Default for PdrConfig {
             heading: HeadingConfig::default(),
             vertical: VerticalConfig::default(),
             motion: MotionConfig::default(),
+            handling: crate::handling::HandlingConfig::default(),
             min_step_length: 0.2,
             max_step_length: 1.5,
             default_period_s: 0.55,
@@ -153,6 +156,20 @@ impl PdrConfig {
             return bad(
                 "max_step_length",
                 format!("must be finite and >= min_step_length ({lo}), got {hi}"),
+            );
+        }
+        if let Some(m) = self.handling.max_rotation_rad_s
+            && !(m.is_finite() && m > 0.0)
+        {
+            return bad(
+                "handling.max_rotation_rad_s",
+                format!("must be finite and > 0, got {m}"),
+            );
+        }
+        if !(self.handling.tau_s.is_finite() && self.handling.tau_s >= 0.0) {
+            return bad(
+                "handling.tau_s",
+                format!("must be finite and >= 0, got {}", self.handling.tau_s),
             );
         }
         let d = &self.detector;
@@ -254,6 +271,8 @@ pub struct PdrDiagnostics {
     pub steps_with_fallback_heading: usize,
     /// Compass observations rejected by the heading filter's gate.
     pub compass_rejected: usize,
+    /// Steps rejected because the phone was being handled ([`crate::handling`]).
+    pub steps_rejected_handling: usize,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -332,6 +351,7 @@ pub struct Pdr {
     prev_heading: Option<f64>,
     prev_variance: Option<f64>,
     prev_period: Option<f64>,
+    handling: crate::handling::HandlingGate,
     diag: PdrDiagnostics,
 }
 
@@ -364,6 +384,7 @@ impl Pdr {
             prev_heading: None,
             prev_variance: None,
             prev_period: None,
+            handling: crate::handling::HandlingGate::default(),
             diag: PdrDiagnostics::default(),
         }
     }
@@ -471,6 +492,8 @@ impl Pdr {
                 self.gyro_att.initialise(q);
             }
         }
+        let norm = (s.v[0] * s.v[0] + s.v[1] * s.v[1] + s.v[2] * s.v[2]).sqrt();
+        self.handling.push(s.t, norm, &self.cfg.handling);
         self.gyro_att.integrate(s.t, s.v, self.acc);
         if let Some(q) = self.gyro_att.orientation() {
             self.tracks[1].update(heading_of(q));
@@ -523,7 +546,12 @@ impl Pdr {
             self.stationary.reset();
             self.prev_period = None;
         }
-        candidate.map(|c| self.make_step(c))
+        let candidate = candidate?;
+        if self.handling.handling(&self.cfg.handling) {
+            self.diag.steps_rejected_handling += 1;
+            return None;
+        }
+        Some(self.make_step(candidate))
     }
 
     fn make_step(&mut self, c: StepCandidate) -> StepDetail {

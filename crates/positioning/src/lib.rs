@@ -12,7 +12,11 @@
 //!   001 §2.3, 002 §3.2, 004 eq. 11), fed what it needs from the PDR (motion state,
 //!   displacement since the previous scan),
 //! - a fuser (`wipdr-fusion`: every scheme behind the `Fuser` trait), wrapped in the static
-//!   start and map matching where configured.
+//!   start and map matching where configured;
+//! - where the radio map has floors, a [`FloorTracker`] (Wi-Fi majority floor of each fix and
+//!   the barometer's pressure changes, a Bayes filter over the map's floors): estimates carry
+//!   its floor and each fix is restricted to its candidates on that floor
+//!   ([`wipdr_core::WifiObservation::on_floor`]).
 //!
 //! The evaluation (`wipdr-eval`), `wipdr locate` and the Python package all run this
 //! pipeline, so a figure in a results table is what a user's own stream gets. Recorded walks

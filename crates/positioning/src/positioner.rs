@@ -3,7 +3,9 @@
 //! [`Positioner`] that chains them for one stream.
 
 use crate::sample::{PressureSample, Sample};
-use crate::{FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site};
+use crate::{
+    FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site,
+};
 use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
@@ -79,7 +81,12 @@ impl Frontend {
         matcher: Box<dyn OnlineMatcher>,
         floor: FloorConfig,
     ) -> Self {
-        let levels: Vec<i32> = matcher.map().points().iter().filter_map(|p| p.floor).collect();
+        let levels: Vec<i32> = matcher
+            .map()
+            .points()
+            .iter()
+            .filter_map(|p| p.floor)
+            .collect();
         let floors = (!levels.is_empty()).then(|| FloorTracker::new(levels, floor));
         Self {
             pdr: Pdr::new(pdr),

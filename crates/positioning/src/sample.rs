@@ -108,6 +108,9 @@ mod tests {
         }];
         let order: Vec<(TimestampMs, u8)> =
             samples_of(&walk).map(|s| (s.t(), s.tie_rank())).collect();
-        assert_eq!(order, vec![(0, 3), (10, 1), (10, 3), (10, 4), (10, 5), (20, 3)]);
+        assert_eq!(
+            order,
+            vec![(0, 3), (10, 1), (10, 3), (10, 4), (10, 5), (20, 3)]
+        );
     }
 }

@@ -365,10 +365,13 @@ impl SimWorld {
             let p = position(t);
             let (nx, ny) = (rng.normal(), rng.normal());
             let noise = w.waypoint_noise_m;
-            waypoints.push(Waypoint::new(t_ms, Point2::new(
+            waypoints.push(Waypoint::new(
+                t_ms,
+                Point2::new(
                     round_to(p.x + noise * nx, 1e4),
                     round_to(p.y + noise * ny, 1e4),
-                )));
+                ),
+            ));
         }
 
         let walk_id = self.walk_id(index);

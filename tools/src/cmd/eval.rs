@@ -78,9 +78,8 @@ pub fn evaluate_and_report(
     pb.finish_and_clear();
     let unmatched: usize = prepared.iter().map(|p| p.unmatched_scans).sum();
     let off_floor: usize = prepared.iter().map(|p| p.off_floor_fixes).sum();
-    let scans: usize = prepared.iter().map(|p| p.observations.len()).sum::<usize>()
-        + unmatched
-        + off_floor;
+    let scans: usize =
+        prepared.iter().map(|p| p.observations.len()).sum::<usize>() + unmatched + off_floor;
     let folds: Vec<String> = floors
         .iter()
         .map(|f| {

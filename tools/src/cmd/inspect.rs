@@ -370,7 +370,8 @@ mod tests {
         let mut walk = Walk::default();
         walk.meta.id = "w".into();
         for i in 0..3 {
-            walk.waypoints.push(Waypoint::new(1000 * i, Point2::new(1.0 + i as f64, 5.0)));
+            walk.waypoints
+                .push(Waypoint::new(1000 * i, Point2::new(1.0 + i as f64, 5.0)));
         }
         let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
         let bbox = LonLatBox::around(8.0, 47.0, 20.0, 10.0);

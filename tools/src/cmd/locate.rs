@@ -80,19 +80,31 @@ pub fn run(args: Args) -> Result<()> {
         let dir = args
             .data
             .parent()
-            .map(|p| if p.as_os_str().is_empty() { std::path::Path::new(".") } else { p })
+            .map(|p| {
+                if p.as_os_str().is_empty() {
+                    std::path::Path::new(".")
+                } else {
+                    p
+                }
+            })
             .unwrap_or(std::path::Path::new("."))
             .to_path_buf();
         let id = wipdr_io::trace::walk_id_of(&args.data);
         if let Some(w) = &args.walk
             && *w != id
         {
-            bail!("--walk {w} names another walk than --data {}", args.data.display());
+            bail!(
+                "--walk {w} names another walk than --data {}",
+                args.data.display()
+            );
         }
         (dir, id, pipeline::Training::AllOthers)
     } else {
         let Some(walk) = args.walk.clone() else {
-            bail!("--walk is needed with a folder (--data {})", args.data.display());
+            bail!(
+                "--walk is needed with a folder (--data {})",
+                args.data.display()
+            );
         };
         (args.data.clone(), walk, pipeline::Training::ProtocolFold)
     };
@@ -256,7 +268,10 @@ mod tests {
         let track = [est(120, 1.0), est(700, 2.0), est(1_400, 3.0)];
         let rows = at_rate(&track, 500, Some(2_100));
         let got: Vec<(i64, f64)> = rows.iter().map(|e| (e.t, e.position.x)).collect();
-        assert_eq!(got, vec![(500, 1.0), (1_000, 2.0), (1_500, 3.0), (2_000, 3.0)]);
+        assert_eq!(
+            got,
+            vec![(500, 1.0), (1_000, 2.0), (1_500, 3.0), (2_000, 3.0)]
+        );
         assert!(at_rate(&[], 500, None).is_empty());
     }
 
@@ -266,6 +281,9 @@ mod tests {
         let mut out = Vec::new();
         write_ipin(&mut out, &[est(0, 0.0)], &frame, Some(400)).unwrap();
         let text = String::from_utf8(out).unwrap();
-        assert_eq!(text, "t_s,lat,lon,floor\n0.000,49.460000000,11.110000000,0\n");
+        assert_eq!(
+            text,
+            "t_s,lat,lon,floor\n0.000,49.460000000,11.110000000,0\n"
+        );
     }
 }

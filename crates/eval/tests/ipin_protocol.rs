@@ -1,0 +1,56 @@
+//! The IPIN protocol on the 29 real logfiles (when `../shared/data/ipin2023` exists):
+//! leave-one-route-out folds, every POSI point scored or counted, floors scored, EvAAL.
+//! The PDR baseline (true start, default PDR with calibration) is held to the reference
+//! pipeline's figure (4.27 m mean, issue 15) within 25 %.
+
+use std::path::PathBuf;
+use wipdr_eval::pipeline::{EvalConfig, FloorInput, evaluate};
+use wipdr_io::ReadOptions;
+use wipdr_io::logfile_folder::read_logfile_dir;
+
+#[test]
+fn leave_one_route_out_with_floors_and_evaal() {
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/ipin2023"
+    ));
+    if !dir.is_dir() {
+        println!("skipped: IPIN data not found at {}", dir.display());
+        return;
+    }
+    let data = read_logfile_dir(&dir, &ReadOptions::default()).unwrap();
+    let posi: usize = data.walks.iter().map(|w| w.walk.waypoints.len()).sum();
+    let floor = FloorInput::new("ipin2023", data.into_floor());
+    assert_eq!(wipdr_eval::fold::fold_count(&floor), 8);
+    let schemes = ["wifi".to_string(), "pdr".to_string(), "ekf".to_string()];
+    let report = evaluate(&[floor], &EvalConfig::default(), &schemes, &|| {}).unwrap();
+    for s in &schemes {
+        let p = &report.pooled[s];
+        assert_eq!(
+            p.count + p.skipped,
+            posi,
+            "{s}: every POSI scored or counted"
+        );
+        let hits = p.floor_hit_rate.expect("floors scored");
+        assert!((0.0..=1.0).contains(&hits));
+        let evaal = p.evaal.expect("EvAAL");
+        assert!(
+            evaal >= p.p75 - 1e-9,
+            "{s}: EvAAL {evaal} below the 2D p75 {}",
+            p.p75
+        );
+    }
+    let pdr = &report.pooled["pdr"];
+    assert!(
+        pdr.mean < 4.27 * 1.25,
+        "PDR from the true start: {:.2} m",
+        pdr.mean
+    );
+    let floors_of_points: usize = report
+        .walks
+        .iter()
+        .filter(|w| w.scheme == "ekf")
+        .map(|w| w.score.floor_scored)
+        .sum();
+    assert_eq!(floors_of_points, report.pooled["ekf"].count);
+}
