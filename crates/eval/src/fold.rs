@@ -6,6 +6,7 @@ use crate::folds::folds_of_walks;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
 use crate::pipeline::{EvalError, FloorInput, PreparedWalk, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
 use std::sync::Arc;
+use wipdr_core::walk::floor_of_waypoints;
 use wipdr_core::{Point2, TimestampMs, Walk};
 use wipdr_fingerprint::MatcherModel;
 use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};
@@ -13,7 +14,26 @@ use wipdr_fingerprint::radio_map::per_floor;
 use wipdr_fingerprint::walk_map::build_from_walks;
 use wipdr_fusion::trails::{TrailRaster, trails_of};
 use wipdr_pdr::PdrConfig;
-use wipdr_positioning::{Event, Frontend, Site, samples_of};
+use wipdr_positioning::{Event, Frontend, PressureReference, Site, StreamIdentity, samples_of};
+
+/// The floor config of a floor's runs: `fixes_across_floors` resolved where it is auto
+/// (across floors where the floors share one WGS84 frame).
+pub fn floor_config(floor: &FloorInput, cfg: &EvalConfig) -> wipdr_positioning::FloorConfig {
+    let mut c = cfg.floor;
+    c.fixes_across_floors = Some(
+        c.fixes_across_floors
+            .unwrap_or(floor.data.geo_frame.is_some()),
+    );
+    c
+}
+
+/// Who recorded a walk and when (phone model and start time), where its metadata says.
+pub fn identity_of(walk: &Walk) -> Option<StreamIdentity> {
+    Some(StreamIdentity {
+        model: walk.meta.model.clone()?,
+        start_unix_ms: walk.meta.start_time?,
+    })
+}
 
 /// What one fold learned from its training walks.
 #[derive(Debug, Clone)]
@@ -30,6 +50,64 @@ pub struct FoldModel {
     pub trails: Option<Arc<TrailRaster>>,
     /// Indices (into the floor's walks) of the fold's test walks.
     pub test_walks: Vec<usize>,
+    /// The training walks' barometer on known floors (for the floor estimate's references).
+    pub pressure_references: Arc<Vec<PressureReference>>,
+}
+
+/// Length of the stretches a training walk's pressure is averaged over, ms.
+pub const REFERENCE_STRETCH_MS: i64 = 30_000;
+/// Largest pressure range within a stretch for it to be a reference (a stretch on the
+/// stairs is not), hPa.
+pub const REFERENCE_MAX_RANGE_HPA: f64 = 0.1;
+
+/// Barometric references from walks with a phone model, a start time (Unix ms) and
+/// floors on their waypoints: the mean pressure of each stretch of [`REFERENCE_STRETCH_MS`]
+/// within the waypoints' span on one floor, steady within [`REFERENCE_MAX_RANGE_HPA`].
+pub fn pressure_references(walks: &[&Walk]) -> Vec<PressureReference> {
+    let mut out = Vec::new();
+    for w in walks {
+        let (Some(model), Some(start)) = (&w.meta.model, w.meta.start_time) else {
+            continue;
+        };
+        let mut stretch: Vec<(TimestampMs, f64)> = Vec::new();
+        let mut stretch_floor: Option<i32> = None;
+        let mut flush = |stretch: &mut Vec<(TimestampMs, f64)>, floor: Option<i32>| {
+            if let (Some(floor), Some(first), Some(last)) = (floor, stretch.first(), stretch.last())
+                && stretch.len() >= 5
+            {
+                let (lo, hi) = stretch
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                        (lo.min(p.1), hi.max(p.1))
+                    });
+                if hi - lo <= REFERENCE_MAX_RANGE_HPA {
+                    let mean = stretch.iter().map(|p| p.1).sum::<f64>() / stretch.len() as f64;
+                    out.push(PressureReference {
+                        model: model.clone(),
+                        t_unix_ms: start.saturating_add((first.0 + last.0) / 2),
+                        hpa: mean,
+                        floor,
+                    });
+                }
+            }
+            stretch.clear();
+        };
+        for p in &w.pressure {
+            let floor = floor_of_waypoints(&w.waypoints, p.t);
+            let too_long = stretch
+                .first()
+                .is_some_and(|f| p.t - f.0 >= REFERENCE_STRETCH_MS);
+            if floor != stretch_floor || too_long {
+                flush(&mut stretch, stretch_floor);
+                stretch_floor = floor;
+            }
+            if floor.is_some() && p.hpa.is_finite() {
+                stretch.push((p.t, p.hpa));
+            }
+        }
+        flush(&mut stretch, stretch_floor);
+    }
+    out
 }
 
 /// The protocol fold of every walk of a floor ([`folds_of_walks`]: by route where walks
@@ -120,7 +198,9 @@ impl FoldModel {
         } else {
             cfg.pdr
         };
+        let pressure_references = Arc::new(pressure_references(&training));
         Ok(Self {
+            pressure_references,
             fold,
             matcher,
             pdr,
@@ -150,8 +230,14 @@ impl FoldModel {
         walk: &Walk,
         cfg: &EvalConfig,
     ) -> PreparedWalk {
-        let mut frontend =
-            Frontend::with_floor_config(self.pdr, self.matcher.stream(cfg.query), cfg.floor);
+        let mut frontend = Frontend::with_floor_config(
+            self.pdr,
+            self.matcher.stream(cfg.query),
+            floor_config(floor, cfg),
+        );
+        if let Some(id) = identity_of(walk) {
+            frontend.set_pressure_references(self.pressure_references.clone(), id);
+        }
         let mut steps = Vec::new();
         let mut observations = Vec::with_capacity(walk.wifi.len());
         let mut floors: Vec<(TimestampMs, i32)> = Vec::new();

@@ -40,6 +40,16 @@ pub enum EvalError {
         /// Folds required.
         folds: usize,
     },
+    /// Walks with routes (leave-one-route-out) of fewer than two routes.
+    #[error(
+        "floor {floor}: its walks cover {routes} route(s); leave-one-route-out needs at least 2"
+    )]
+    TooFewRoutes {
+        /// Floor label.
+        floor: String,
+        /// Distinct routes found.
+        routes: usize,
+    },
     /// Building a radio map or matcher failed.
     #[error("floor {floor}, fold {fold}: {source}")]
     Fingerprint {
@@ -201,13 +211,20 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
 /// A floor needs a walk per fold (route folds: at least two routes).
 fn check_enough_walks(f: &FloorInput) -> Result<(), EvalError> {
     let n = f.data.walks.len();
-    let folds = crate::fold::fold_count(f);
-    let needed = if folds == FOLDS { FOLDS } else { 2 };
-    if n < needed || folds < 2 {
+    let by_route = f.data.walks.iter().all(|w| w.meta.route.is_some()) && n > 0;
+    if by_route {
+        let routes = crate::fold::fold_count(f);
+        if routes < 2 {
+            return Err(EvalError::TooFewRoutes {
+                floor: f.label.clone(),
+                routes,
+            });
+        }
+    } else if n < FOLDS {
         return Err(EvalError::TooFewWalks {
             floor: f.label.clone(),
             walks: n,
-            folds: needed,
+            folds: FOLDS,
         });
     }
     Ok(())
@@ -395,6 +412,7 @@ pub fn locate_with(
         .flatten();
     let mut positioner_cfg = cfg.positioner(scheme_cfg, model.pdr);
     positioner_cfg.seed = stream_seed(cfg.seed, walk_id);
+    positioner_cfg.floor = crate::fold::floor_config(floor, cfg);
     let site = model.site(&FloorEnv::new(floor).site);
     let mut positioner = Positioner::new(
         &model.matcher,
@@ -406,6 +424,9 @@ pub fn locate_with(
         floor: floor.label.clone(),
         source,
     })?;
+    if let Some(id) = crate::fold::identity_of(walk) {
+        positioner.set_pressure_references(model.pressure_references.clone(), id);
+    }
     Ok(track_of(&mut positioner, samples_of(walk), start))
 }
 

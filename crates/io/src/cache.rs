@@ -68,7 +68,7 @@ pub const DEFAULT_CACHE_DIR: &str = "target/wipdr-cache";
 pub const DEFAULT_MAX_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
 /// Bumped whenever the cached types, the file layout or the reader's behaviour change.
-pub const FORMAT_VERSION: u32 = 8;
+pub const FORMAT_VERSION: u32 = 9;
 const MAGIC: &[u8; 8] = b"WIPDRFC\0";
 /// Bytes of the fixed file header: magic, version, table offset, table length, table CRC,
 /// header CRC.

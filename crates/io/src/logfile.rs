@@ -219,6 +219,67 @@ fn seconds_to_ms(s: &str) -> Option<TimestampMs> {
     (ms.is_finite() && ms.abs() <= MAX_ABS_TIME_MS as f64).then_some(ms as i64)
 }
 
+/// Days from 1970-01-01 to a civil date (proleptic Gregorian; H. Hinnant's algorithm).
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// The header's `Date of creation` (Java's `Date.toString()`: `Wed Jun 14 10:00:58
+/// GMT+02:00 2023`) as Unix ms; `None` when it does not have that form.
+///
+/// ```
+/// use wipdr_io::logfile::parse_creation_date;
+/// assert_eq!(parse_creation_date("Wed Jun 14 10:00:58 GMT+02:00 2023"), Some(1_686_729_658_000));
+/// assert_eq!(parse_creation_date("yesterday"), None);
+/// ```
+pub fn parse_creation_date(text: &str) -> Option<TimestampMs> {
+    let parts: Vec<&str> = text.split_whitespace().collect();
+    let [_, month, day, clock, zone, year] = parts.as_slice() else {
+        return None;
+    };
+    const MONTHS: [&str; 12] = [
+        "Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec",
+    ];
+    let m = MONTHS.iter().position(|x| x == month)? as i64 + 1;
+    let d: i64 = day.parse().ok().filter(|d| (1..=31).contains(d))?;
+    let y: i64 = year.parse().ok().filter(|y| (1970..=9999).contains(y))?;
+    let hms: Vec<i64> = clock
+        .split(':')
+        .map(|v| v.parse().ok())
+        .collect::<Option<_>>()?;
+    let [h, mi, se] = hms.as_slice() else {
+        return None;
+    };
+    if !(0..24).contains(h) || !(0..60).contains(mi) || !(0..61).contains(se) {
+        return None;
+    }
+    let offset_min = match zone.strip_prefix("GMT").or(zone.strip_prefix("UTC")) {
+        Some("") => 0,
+        Some(z) => {
+            let sign = match z.as_bytes().first()? {
+                b'+' => 1,
+                b'-' => -1,
+                _ => return None,
+            };
+            let (oh, om) = z[1..].split_once(':').unwrap_or((&z[1..], "0"));
+            let (oh, om): (i64, i64) = (oh.parse().ok()?, om.parse().ok()?);
+            if oh > 14 || om > 59 {
+                return None;
+            }
+            sign * (oh * 60 + om)
+        }
+        None => return None,
+    };
+    let seconds = days_from_civil(y, m, d) * 86_400 + h * 3600 + mi * 60 + se - offset_min * 60;
+    Some(seconds * 1000)
+}
+
 /// Sensor streams with a SensorTimestamp, in the order of [`Parser::clocks`].
 #[derive(Clone, Copy)]
 enum Stream {
@@ -313,6 +374,9 @@ impl<'l> Parser<'l> {
         let value = Some(value.trim().to_string()).filter(|v| !v.is_empty());
         let meta = &mut self.walk.meta;
         match key.trim() {
+            "Date of creation" => {
+                meta.start_time = value.as_deref().and_then(parse_creation_date);
+            }
             "Manufacturer" => meta.brand = value,
             "Model" => meta.model = value,
             "Android version Release" => meta.android = value,

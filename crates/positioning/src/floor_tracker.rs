@@ -16,11 +16,43 @@
 //!   the pressure slowly ([`FloorConfig::reference_follow_s`]) so weather drift over hours is
 //!   not taken for a floor change.
 //!
+//! - **Barometric references** (differential barometry): where training walks recorded by
+//!   the same phone model within [`FloorConfig::reference_window_min`] of the stream give
+//!   their pressure on a known floor ([`PressureReference`]), each fix also weighs the
+//!   floors by how well the stream's smoothed pressure fits `reference floor + (reference
+//!   pressure - pressure) / hpa_per_floor` (median over the references, Gaussian with
+//!   [`FloorConfig::reference_sigma_floors`]). A phone model's offset cancels (same model);
+//!   the window bounds the weather's drift. Without references nothing changes.
+//!
 //! The floor is the belief's most likely floor; `None` before the first fix.
 
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
+use std::sync::Arc;
 use wipdr_core::{PressureSample, TimestampMs};
+
+/// A training walk's barometer on a known floor: the mean pressure of one stretch of the
+/// walk on one floor, at its middle time (Unix ms), recorded by phone `model`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PressureReference {
+    /// Phone model (`WalkMeta::model`).
+    pub model: String,
+    /// Time, Unix ms.
+    pub t_unix_ms: TimestampMs,
+    /// Mean pressure, hPa.
+    pub hpa: f64,
+    /// The floor it was recorded on.
+    pub floor: i32,
+}
+
+/// Who records a stream and when it started: what [`PressureReference`]s are matched on.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StreamIdentity {
+    /// Phone model.
+    pub model: String,
+    /// Unix ms of the stream's time 0.
+    pub start_unix_ms: TimestampMs,
+}
 
 /// Settings of the floor estimate ([`FloorTracker`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -44,6 +76,19 @@ pub struct FloorConfig {
     pub settled_hpa: f64,
     /// Time constant with which the reference follows a settled pressure near it, seconds.
     pub reference_follow_s: f64,
+    /// Largest time between a stream and a [`PressureReference`] of the same phone model for
+    /// the reference to count, minutes (0 turns references off). Default 60: the weather
+    /// moves the pressure by about 0.1-0.3 hPa an hour, a floor is 0.3.
+    pub reference_window_min: f64,
+    /// Spread of the floor implied by the references, floors.
+    pub reference_sigma_floors: f64,
+    /// Keep every candidate of a fix for its 2D position, whatever their floor (right when
+    /// the floors share one metre frame and lie over each other: a fingerprint above or below
+    /// is a 2D hint), instead of restricting the fix to the candidates on the estimated
+    /// floor. `None` (default) = auto: the evaluation keeps them where the data's floors share
+    /// one WGS84 frame (IPIN logfiles) and restricts them otherwise (ILC sites, whose floors
+    /// each have their own frame); a [`crate::Positioner`] built directly restricts them.
+    pub fixes_across_floors: Option<bool>,
 }
 
 impl Default for FloorConfig {
@@ -57,6 +102,9 @@ impl Default for FloorConfig {
             settle_s: 5.0,
             settled_hpa: 0.06,
             reference_follow_s: 600.0,
+            reference_window_min: 60.0,
+            reference_sigma_floors: 0.35,
+            fixes_across_floors: None,
         }
     }
 }
@@ -81,6 +129,13 @@ impl FloorConfig {
         check("settle_s", self.settle_s, 0.5, 120.0)?;
         check("settled_hpa", self.settled_hpa, 0.0, 5.0)?;
         check("reference_follow_s", self.reference_follow_s, 1.0, 1e7)?;
+        check("reference_window_min", self.reference_window_min, 0.0, 1e6)?;
+        check(
+            "reference_sigma_floors",
+            self.reference_sigma_floors,
+            0.05,
+            10.0,
+        )?;
         Ok(())
     }
 }
@@ -115,6 +170,10 @@ pub struct FloorTracker {
     reference: Option<f64>,
     /// Barometric floor changes applied.
     changes: u64,
+    /// Barometric references and the stream's identity, where given.
+    references: Option<(Arc<Vec<PressureReference>>, StreamIdentity)>,
+    /// Fixes weighed by the references.
+    referenced_fixes: u64,
 }
 
 impl FloorTracker {
@@ -132,7 +191,48 @@ impl FloorTracker {
             recent: VecDeque::new(),
             reference: None,
             changes: 0,
+            references: None,
+            referenced_fixes: 0,
         }
+    }
+
+    /// The tracker with barometric references for a stream of `identity` (module docs).
+    pub fn with_references(
+        mut self,
+        references: Arc<Vec<PressureReference>>,
+        identity: StreamIdentity,
+    ) -> Self {
+        self.references = Some((references, identity));
+        self
+    }
+
+    /// Fixes whose floor weights used barometric references.
+    pub fn referenced_fixes(&self) -> u64 {
+        self.referenced_fixes
+    }
+
+    /// The floor the references imply for pressure `hpa` at stream time `t` (continuous,
+    /// median over the matching references); `None` without a matching reference.
+    pub fn referenced_floor(&self, t: TimestampMs, hpa: f64) -> Option<f64> {
+        let (refs, id) = self.references.as_ref()?;
+        let window_ms = self.config.reference_window_min * 60_000.0;
+        let now = id.start_unix_ms.saturating_add(t);
+        let mut implied: Vec<f64> = refs
+            .iter()
+            .filter(|r| r.model == id.model && ((r.t_unix_ms - now) as f64).abs() <= window_ms)
+            .map(|r| f64::from(r.floor) + (r.hpa - hpa) / self.config.hpa_per_floor)
+            .filter(|v| v.is_finite())
+            .collect();
+        if implied.is_empty() {
+            return None;
+        }
+        implied.sort_by(f64::total_cmp);
+        let n = implied.len();
+        Some(if n % 2 == 1 {
+            implied[n / 2]
+        } else {
+            0.5 * (implied[n / 2 - 1] + implied[n / 2])
+        })
     }
 
     /// The floors tracked.
@@ -166,7 +266,6 @@ impl FloorTracker {
 
     /// A fix whose candidates' majority floor is `floor` (`None`: the fix says nothing).
     pub fn push_fix(&mut self, t: TimestampMs, floor: Option<i32>) {
-        let _ = t;
         let n = self.levels.len();
         let Some(k) = floor.and_then(|f| self.levels.iter().position(|&l| l == f)) else {
             return;
@@ -187,6 +286,19 @@ impl FloorTracker {
         let miss = (1.0 - hit) / (n - 1) as f64;
         for (i, b) in self.belief.iter_mut().enumerate() {
             *b *= if i == k { hit } else { miss };
+        }
+        let implied = self
+            .smoothed
+            .and_then(|(_, hpa)| self.referenced_floor(t, hpa));
+        if let Some(implied) = implied {
+            self.referenced_fixes += 1;
+            let sigma = self.config.reference_sigma_floors;
+            // Floors of the map only: a likelihood floored so that no floor is ever ruled
+            // out for good (a wrong reference must stay correctable).
+            for (i, b) in self.belief.iter_mut().enumerate() {
+                let z = (f64::from(self.levels[i]) - implied) / sigma;
+                *b *= (-0.5 * z * z).exp().max(1e-6);
+            }
         }
         self.normalise();
     }
@@ -334,6 +446,48 @@ mod tests {
         steady(&mut f, 20_100, 40_000, 999.65);
         assert_eq!(f.floor(), Some(2));
         assert_eq!(f.barometric_changes(), 1);
+    }
+
+    #[test]
+    fn references_of_the_same_phone_and_hour_decide_the_floor() {
+        let refs = Arc::new(vec![
+            PressureReference {
+                model: "A".into(),
+                t_unix_ms: 1_000_000,
+                hpa: 976.3,
+                floor: 0,
+            },
+            PressureReference {
+                model: "B".into(),
+                t_unix_ms: 1_000_000,
+                hpa: 980.0,
+                floor: 0,
+            },
+        ]);
+        let id = StreamIdentity {
+            model: "A".into(),
+            start_unix_ms: 1_000_000,
+        };
+        let mut f = FloorTracker::new(vec![0, -2], FloorConfig::default())
+            .with_references(refs.clone(), id.clone());
+        steady(&mut f, 0, 10_000, 976.98);
+        // Wi-Fi says floor 0 four times; the pressure (+0.68 hPa over the reference) says -2.
+        for k in 0..4 {
+            f.push_fix(10_000 + k, Some(0));
+        }
+        assert_eq!(f.floor(), Some(-2));
+        assert_eq!(f.referenced_fixes(), 4);
+        // Another phone model's reference does not count; nor one two hours away.
+        let far = StreamIdentity {
+            model: "A".into(),
+            start_unix_ms: 1_000_000 + 7_200_000,
+        };
+        let mut g =
+            FloorTracker::new(vec![0, -2], FloorConfig::default()).with_references(refs, far);
+        steady(&mut g, 0, 10_000, 976.98);
+        g.push_fix(10_000, Some(0));
+        assert_eq!(g.floor(), Some(0));
+        assert_eq!(g.referenced_fixes(), 0);
     }
 
     #[test]

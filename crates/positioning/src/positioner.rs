@@ -54,6 +54,7 @@ pub struct Frontend {
     last_t: Option<TimestampMs>,
     last_pressure: Option<PressureSample>,
     floors: Option<FloorTracker>,
+    fixes_across_floors: bool,
     counts: StreamCounts,
 }
 
@@ -75,7 +76,8 @@ impl Frontend {
     /// A front end over a built matcher. When the matcher's radio map has floors, a
     /// [`FloorTracker`] over them estimates the stream's floor from the fixes and the
     /// barometer, and each fix is restricted to its candidates on that floor
-    /// ([`WifiObservation::on_floor`]; a fix with none there is dropped and counted).
+    /// ([`WifiObservation::on_floor`]; a fix with none there is dropped and counted) unless
+    /// [`FloorConfig::fixes_across_floors`].
     pub fn with_floor_config(
         pdr: PdrConfig,
         matcher: Box<dyn OnlineMatcher>,
@@ -96,7 +98,20 @@ impl Frontend {
             last_t: None,
             last_pressure: None,
             floors,
+            fixes_across_floors: floor.fixes_across_floors.unwrap_or(false),
             counts: StreamCounts::default(),
+        }
+    }
+
+    /// Gives the floor estimate barometric references for this stream
+    /// ([`FloorTracker::with_references`]); no effect when the map has no floors.
+    pub fn set_pressure_references(
+        &mut self,
+        references: std::sync::Arc<Vec<crate::PressureReference>>,
+        identity: crate::StreamIdentity,
+    ) {
+        if let Some(t) = self.floors.take() {
+            self.floors = Some(t.with_references(references, identity));
         }
     }
 
@@ -175,6 +190,12 @@ impl Frontend {
         let Some(floor) = floors.floor() else {
             return Some(obs);
         };
+        if self.fixes_across_floors {
+            return Some(WifiObservation {
+                floor: Some(floor),
+                ..obs
+            });
+        }
         let on_floor = obs.on_floor(floor);
         if on_floor.is_none() {
             self.counts.off_floor_fixes += 1;
@@ -324,6 +345,16 @@ impl Positioner {
         let event = self.frontend.push(sample)?;
         self.fusion.push(&event)?;
         self.estimate()
+    }
+
+    /// Gives the floor estimate barometric references for this stream
+    /// ([`Frontend::set_pressure_references`]).
+    pub fn set_pressure_references(
+        &mut self,
+        references: std::sync::Arc<Vec<crate::PressureReference>>,
+        identity: crate::StreamIdentity,
+    ) {
+        self.frontend.set_pressure_references(references, identity);
     }
 
     /// Feeds one sample to the front end only (PDR attitude and filters, matcher state, floor

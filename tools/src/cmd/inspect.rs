@@ -170,11 +170,16 @@ fn inspect_floor(dir: &Path, args: &Args, options: &ReadOptions) -> anyhow::Resu
         }
     );
     println!(
-        "  {waypoints} waypoints ({} inside the outline), {scans} Wi-Fi scans, {} distinct APs",
-        if waypoints == 0 {
-            "-".to_string()
+        "  {waypoints} waypoints ({}), {scans} Wi-Fi scans, {} distinct APs",
+        if floor.plan.outline.is_empty() {
+            "the plan has no outline".to_string()
+        } else if waypoints == 0 {
+            "- inside the outline".to_string()
         } else {
-            format!("{:.1} %", 100.0 * inside as f64 / waypoints as f64)
+            format!(
+                "{:.1} % inside the outline",
+                100.0 * inside as f64 / waypoints as f64
+            )
         },
         aps.len()
     );
