@@ -45,6 +45,11 @@ pub fn folds_by_name<S: AsRef<str>>(names: &[S]) -> Vec<usize> {
 /// assert_eq!(folds_of_walks(&plain).1, 5);
 /// ```
 pub fn folds_of_walks(walks: &[Walk]) -> (Vec<usize>, usize) {
+    folds_of_walk_refs(&walks.iter().collect::<Vec<_>>())
+}
+
+/// [`folds_of_walks`] over borrowed walks.
+pub fn folds_of_walk_refs(walks: &[&Walk]) -> (Vec<usize>, usize) {
     let routes: Option<Vec<&str>> = walks.iter().map(|w| w.meta.route.as_deref()).collect();
     match routes {
         Some(routes) if !routes.is_empty() => {

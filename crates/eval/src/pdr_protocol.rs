@@ -8,7 +8,7 @@
 //! scored per leg (relative length error, heading error) and as PDR-only positions started at
 //! the true first waypoint, scored after the walk's first Wi-Fi scan ([`score_schemes`]).
 
-use crate::folds::{FOLDS, folds_by_name};
+use crate::folds::folds_of_walk_refs;
 use rayon::prelude::*;
 use wipdr_core::{TimestampMs, Walk, Waypoint};
 use wipdr_pdr::calibrate::{
@@ -32,10 +32,10 @@ pub struct WalkRun {
     pub first_wifi: Option<TimestampMs>,
 }
 
-/// Runs `cfg` over the walks of one floor (parallel); folds from the walk ids.
+/// Runs `cfg` over the walks of one floor (parallel); folds as the evaluation's
+/// ([`crate::folds::folds_of_walk_refs`]: by route where walks have routes, else by id).
 pub fn run_walks(walks: &[&Walk], cfg: &PdrConfig) -> Vec<WalkRun> {
-    let ids: Vec<&str> = walks.iter().map(|w| w.meta.id.as_str()).collect();
-    let folds = folds_by_name(&ids);
+    let (folds, _) = folds_of_walk_refs(walks);
     walks
         .par_iter()
         .zip(folds)
@@ -170,7 +170,8 @@ pub fn score_schemes(
             };
             let mut col = SchemeErrors::default();
             let mut tracks = vec![Vec::new(); runs.len()];
-            for fold in 0..FOLDS {
+            let fold_count = runs.iter().map(|r| r.fold + 1).max().unwrap_or(0);
+            for fold in 0..fold_count {
                 let train = walk_steps(runs, |r| r.fold != fold);
                 let (model, offset) = if sc.calibrate {
                     let mut base = *run_cfg;
