@@ -32,9 +32,9 @@
 //! The same [`Limits`] and typed [`IoError`]s as the ILC reader bound every file.
 
 use crate::trace::{
-    LineStatus, MAX_ABS_ACCELERATION, MAX_ABS_MAGNETIC_FIELD, MAX_ABS_ROTATION_RATE,
-    MAX_ABS_ROTATION_VECTOR, MAX_ABS_TIME_MS, ParseReport, ParsedWalk, SkipKind, in_range,
-    parse_f64, read_line_bounded,
+    MAX_ABS_ACCELERATION, MAX_ABS_MAGNETIC_FIELD, MAX_ABS_ROTATION_RATE, MAX_ABS_ROTATION_VECTOR,
+    MAX_ABS_TIME_MS, ParseReport, ParsedWalk, SkipKind, check_count, for_each_line, in_range,
+    parse_f64, parse_vec3,
 };
 use crate::{IoError, Limits};
 use flate2::read::MultiGzDecoder;
@@ -302,20 +302,6 @@ struct Parser<'l> {
     open_scan: Option<String>,
     records_seen: usize,
     memory: u64,
-}
-
-fn check_count(n: usize, min: usize, max: usize) -> Result<(), SkipKind> {
-    if n < min {
-        Err(SkipKind::MissingFields)
-    } else if n > max {
-        Err(SkipKind::ExtraFields)
-    } else {
-        Ok(())
-    }
-}
-
-fn parse_vec3(v: &[&str]) -> Result<[f64; 3], SkipKind> {
-    Ok([parse_f64(v[0])?, parse_f64(v[1])?, parse_f64(v[2])?])
 }
 
 fn parse_accuracy(v: Option<&&str>) -> Result<i8, SkipKind> {
@@ -706,43 +692,14 @@ impl<'l> Parser<'l> {
 }
 
 fn parse<R: BufRead>(
-    mut reader: R,
+    reader: R,
     path: &Path,
     id: &str,
     limits: &Limits,
 ) -> Result<ParsedLogfile, IoError> {
     let mut parser = Parser::new(path, id, limits);
-    let mut buf = Vec::with_capacity(256);
-    let mut consumed = 0u64;
-    let mut line_no = 0usize;
-    loop {
-        let status = read_line_bounded(&mut reader, &mut buf, limits.max_line_bytes, &mut consumed)
-            .map_err(|source| IoError::Read {
-                path: path.to_path_buf(),
-                line: line_no,
-                source,
-            })?;
-        if consumed > limits.max_input_bytes {
-            return Err(IoError::InputTooLarge {
-                path: path.to_path_buf(),
-                limit: limits.max_input_bytes,
-            });
-        }
-        match status {
-            LineStatus::Eof => break,
-            LineStatus::TooLong => {
-                return Err(IoError::LineTooLong {
-                    path: path.to_path_buf(),
-                    line: line_no + 1,
-                    limit: limits.max_line_bytes,
-                });
-            }
-            LineStatus::Line => {}
-        }
-        line_no += 1;
+    for_each_line(reader, path, limits, |line, line_no| {
         parser.report.lines += 1;
-        let text = String::from_utf8_lossy(&buf);
-        let line = text.strip_suffix('\r').unwrap_or(&text);
         if line.trim().is_empty() {
             parser.skip(SkipKind::Blank, line_no);
             parser.open_scan = None;
@@ -751,7 +708,8 @@ fn parse<R: BufRead>(
         } else {
             parser.line(line, line_no)?;
         }
-    }
+        Ok(())
+    })?;
     Ok(parser.finish())
 }
 

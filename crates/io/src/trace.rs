@@ -280,14 +280,14 @@ pub fn read_walk_from(
     }
 }
 
-pub(crate) enum LineStatus {
+enum LineStatus {
     Eof,
     Line,
     TooLong,
 }
 
 /// Reads one line (without its `\n`) into `buf`, never buffering more than `max` bytes.
-pub(crate) fn read_line_bounded<R: BufRead>(
+fn read_line_bounded<R: BufRead>(
     reader: &mut R,
     buf: &mut Vec<u8>,
     max: usize,
@@ -415,7 +415,7 @@ pub(crate) fn parse_f64(s: &str) -> Result<f64, SkipKind> {
     }
 }
 
-fn parse_vec3(v: &[&str]) -> Result<[f64; 3], SkipKind> {
+pub(crate) fn parse_vec3(v: &[&str]) -> Result<[f64; 3], SkipKind> {
     Ok([parse_f64(v[0])?, parse_f64(v[1])?, parse_f64(v[2])?])
 }
 
@@ -426,7 +426,7 @@ fn parse_accuracy(v: Option<&&str>) -> Result<i8, SkipKind> {
     }
 }
 
-fn check_count(n: usize, min: usize, max: usize) -> Result<(), SkipKind> {
+pub(crate) fn check_count(n: usize, min: usize, max: usize) -> Result<(), SkipKind> {
     if n < min {
         Err(SkipKind::MissingFields)
     } else if n > max {
@@ -777,13 +777,15 @@ impl<'l> Parser<'l> {
     }
 }
 
-fn parse_trace<R: BufRead>(
+/// Reads `reader` line by line within `limits` (line length, input size), calling `each`
+/// with every line (without its `\n` and a trailing `\r`, invalid UTF-8 replaced) and its
+/// 1-based number: the line loop of every text reader here (ILC traces, IPIN logfiles).
+pub(crate) fn for_each_line<R: BufRead>(
     mut reader: R,
     path: &Path,
-    id: &str,
     limits: &Limits,
-) -> Result<ParsedWalk, IoError> {
-    let mut parser = Parser::new(path, id, limits);
+    mut each: impl FnMut(&str, usize) -> Result<(), IoError>,
+) -> Result<(), IoError> {
     let mut buf = Vec::with_capacity(256);
     let mut consumed = 0u64;
     let mut line_no = 0usize;
@@ -801,7 +803,7 @@ fn parse_trace<R: BufRead>(
             });
         }
         match status {
-            LineStatus::Eof => break,
+            LineStatus::Eof => return Ok(()),
             LineStatus::TooLong => {
                 return Err(IoError::LineTooLong {
                     path: path.to_path_buf(),
@@ -812,9 +814,20 @@ fn parse_trace<R: BufRead>(
             LineStatus::Line => {}
         }
         line_no += 1;
-        parser.report.lines += 1;
         let text = String::from_utf8_lossy(&buf);
-        let line = text.strip_suffix('\r').unwrap_or(&text);
+        each(text.strip_suffix('\r').unwrap_or(&text), line_no)?;
+    }
+}
+
+fn parse_trace<R: BufRead>(
+    reader: R,
+    path: &Path,
+    id: &str,
+    limits: &Limits,
+) -> Result<ParsedWalk, IoError> {
+    let mut parser = Parser::new(path, id, limits);
+    for_each_line(reader, path, limits, |line, line_no| {
+        parser.report.lines += 1;
         if line.trim().is_empty() {
             parser.skip(SkipKind::Blank, line_no);
         } else if line.starts_with('#') {
@@ -822,7 +835,8 @@ fn parse_trace<R: BufRead>(
         } else {
             parser.line(line, line_no)?;
         }
-    }
+        Ok(())
+    })?;
     Ok(parser.finish())
 }
 
