@@ -230,8 +230,9 @@ fn trajectories(
         let colour = plotting::palette(i);
         let pts: Vec<(f64, f64)> = track
             .iter()
-            .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
-            .map(|(_, p)| {
+            .map(|tp| tp.position)
+            .filter(|p| p.x.is_finite() && p.y.is_finite())
+            .map(|p| {
                 (
                     p.x.clamp(-50.0, plan.width + 50.0),
                     p.y.clamp(-50.0, plan.height + 50.0),

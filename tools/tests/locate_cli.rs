@@ -55,10 +55,10 @@ fn locate_csv_scores_as_eval_json_for_every_scheme() {
         let text = std::fs::read_to_string(&csv).unwrap();
         let mut lines = text.lines();
         assert_eq!(lines.next(), Some("t_ms,x,y,floor,sd_m"));
-        let track: Vec<(i64, wipdr_core::Point2)> = lines
+        let track: Vec<wipdr_eval::scoring::TrackPoint> = lines
             .map(|l| {
                 let f: Vec<&str> = l.split(',').collect();
-                (
+                wipdr_eval::scoring::TrackPoint::new(
                     f[0].parse().unwrap(),
                     wipdr_core::Point2::new(f[1].parse().unwrap(), f[2].parse().unwrap()),
                 )

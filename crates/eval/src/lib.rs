@@ -21,10 +21,10 @@
 //! ```
 //! use wipdr_core::{Point2, Waypoint};
 //! use wipdr_eval::report::{EvalReport, WalkResult};
-//! use wipdr_eval::scoring::score_track;
+//! use wipdr_eval::scoring::{TrackPoint, score_track};
 //!
 //! let truth = [Waypoint::new(1_000, Point2::new(0.0, 0.0))];
-//! let track = vec![(500, Point2::new(3.0, 4.0))];
+//! let track = vec![TrackPoint::new(500, Point2::new(3.0, 4.0))];
 //! let score = score_track(&truth, &track, None);
 //! let walks = vec![WalkResult { floor: "F1".into(), walk: "w".into(), fold: 0,
 //!                               scheme: "wifi".into(), first_scan_t: None, score }];

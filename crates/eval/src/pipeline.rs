@@ -13,7 +13,7 @@
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
 use crate::report::{EvalReport, WalkResult};
-use crate::scoring::{Track, score_track_with_floors};
+use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
 use std::sync::Arc;
 use thiserror::Error;
@@ -335,7 +335,7 @@ pub fn run_scheme(
     })?;
     let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
     if let (Some(w), Some(e)) = (start, stage.estimate()) {
-        track.push((w.t, e.position));
+        track.push(TrackPoint::new(w.t, e.position).with_sd(e.sd_m()));
     }
     let (steps, fixes) = (&walk.steps, &walk.observations);
     for input in merged(steps, fixes) {
@@ -352,7 +352,7 @@ pub fn run_scheme(
             FusionInput::Wifi(j) => (fixes[j].t, stage.push_fix(&fixes[j])),
         };
         if let Some(e) = estimate {
-            track.push((t, e.position));
+            track.push(TrackPoint::new(t, e.position).with_sd(e.sd_m()));
         }
     }
     Ok(track)

@@ -7,12 +7,17 @@
 //!   "pooled": { "<scheme>": Summary, ... },
 //!   "floors": { "<floor folder>": { "<scheme>": Summary, ... }, ... },
 //!   "walks":  [ { "floor", "walk", "fold", "scheme", "count", "skipped", "mean", "p95",
-//!                 "max", "errors": [[t_ms, metres, floor_error], ...] }, ... ],
+//!                 "max", "errors": [[t_ms, metres, floor_error], ...],
+//!                 "sd_m": [metres or null, ...] }, ... ],
 //!   "config": { ...the evaluation config used... }
 //! }
 //! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max",
-//!             "floor_hit_rate", "evaal" }
+//!             "floor_hit_rate", "evaal", "radius_95_coverage" }
 //! ```
+//!
+//! `sd_m` (only for schemes with an uncertainty) is aligned with `errors`: the horizontal
+//! standard deviation of the estimate scored at each point; `radius_95_coverage` the share
+//! of those points inside 2.4477 x `sd_m` (the 95 % circle of an isotropic Gaussian).
 //!
 //! `floor_error` is the estimated minus the true floor (0 where the walk has no floors;
 //! `null` before the stream's first floor estimate); `floor_hit_rate` is over the scored
@@ -54,6 +59,11 @@ pub struct Summary {
     /// without scored points (and in sweep result files, which keep the 2D figures only).
     #[serde(default)]
     pub evaal: Option<f64>,
+    /// Share of the scored points with an uncertainty whose true position lies inside the
+    /// estimate's 95 % radius ([`crate::scoring::RADIUS_95_PER_SD`] x `sd_m`): near 0.95 for
+    /// an honest radius; `None` where the scheme reports no uncertainty (and in sweep files).
+    #[serde(default)]
+    pub radius_95_coverage: Option<f64>,
 }
 
 impl Summary {
@@ -63,7 +73,11 @@ impl Summary {
         let mut evaal = Vec::new();
         let mut skipped = 0;
         let (mut floor_scored, mut floor_hits) = (0usize, 0usize);
+        let (mut with_sd, mut inside) = (0usize, 0usize);
         for s in scores {
+            let (n, k) = s.radius_95_hits();
+            with_sd += n;
+            inside += k;
             errors.extend(s.errors.iter().map(|e| e.1));
             evaal.extend(crate::scoring::evaal_errors(&s.errors));
             skipped += s.skipped;
@@ -82,6 +96,7 @@ impl Summary {
             max: st.max,
             floor_hit_rate: (floor_scored > 0).then(|| floor_hits as f64 / floor_scored as f64),
             evaal: (!evaal.is_empty()).then(|| ErrorStats::from_errors(&evaal).p75),
+            radius_95_coverage: (with_sd > 0).then(|| inside as f64 / with_sd as f64),
         }
     }
 }
@@ -174,6 +189,8 @@ impl EvalReport {
             .flat_map(|r| r.values())
             .chain(self.pooled.values())
             .any(|r| r.floor_hit_rate.is_some());
+        // The 95 % radius coverage where some scheme reports an uncertainty.
+        let radius = self.pooled.values().any(|r| r.radius_95_coverage.is_some());
         let mut block = |title: &str, rows: &BTreeMap<String, Summary>| {
             let _ = writeln!(out, "{title}");
             let _ = write!(
@@ -183,6 +200,9 @@ impl EvalReport {
             );
             if floors {
                 let _ = write!(out, " {:>7} {:>7}", "floor%", "evaal");
+            }
+            if radius {
+                let _ = write!(out, " {:>6}", "r95%");
             }
             let _ = writeln!(out);
             for s in &self.schemes {
@@ -198,6 +218,12 @@ impl EvalReport {
                             .map_or("-".to_string(), |h| format!("{:.1}", 100.0 * h));
                         let evaal = r.evaal.map_or("-".to_string(), |e| format!("{e:.2}"));
                         let _ = write!(out, " {hits:>7} {evaal:>7}");
+                    }
+                    if radius {
+                        let c = r
+                            .radius_95_coverage
+                            .map_or("-".to_string(), |c| format!("{:.1}", 100.0 * c));
+                        let _ = write!(out, " {c:>6}");
                     }
                     let _ = writeln!(out);
                 }
@@ -315,6 +341,7 @@ mod tests {
                     .collect(),
                 skipped: 1,
                 floor_scored: 0,
+                sd_m: Vec::new(),
             },
         }
     }

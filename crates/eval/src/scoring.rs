@@ -1,7 +1,7 @@
 //! Scoring at waypoints (`docs/evaluation.md`, "Scoring").
 //!
-//! A scheme emits a causal track: `(t, position)` pairs in time order, each using only records
-//! up to `t`. At each waypoint time the error is the 2D distance between the waypoint and the
+//! A scheme emits a causal track: [`TrackPoint`]s (time, position, the scheme's horizontal
+//! standard deviation where it has one) in time order, each using only records up to `t`. At each waypoint time the error is the 2D distance between the waypoint and the
 //! latest estimate at or before that time. Waypoints before the first estimate, or before the
 //! protocol's scoring start (the walk's first Wi-Fi scan, as the reference pipeline scores), are
 //! counted as skipped — never silently dropped.
@@ -15,9 +15,49 @@
 
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, TimestampMs, Waypoint};
+use wipdr_positioning::PositionEstimate;
+
+/// One estimate of a track: time, position and the scheme's horizontal uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrackPoint {
+    /// Time of the input that produced the estimate (ms).
+    pub t: TimestampMs,
+    /// Estimated position (the floor's metre frame).
+    pub position: Point2,
+    /// Horizontal standard deviation, metres (`sqrt(trace(P)/2)`,
+    /// [`PositionEstimate::sd_m`]); `None` where the scheme carries no covariance.
+    pub sd_m: Option<f64>,
+}
+
+impl TrackPoint {
+    /// A point without an uncertainty.
+    pub fn new(t: TimestampMs, position: Point2) -> Self {
+        Self {
+            t,
+            position,
+            sd_m: None,
+        }
+    }
+
+    /// The same point with a horizontal standard deviation (metres).
+    pub fn with_sd(mut self, sd_m: Option<f64>) -> Self {
+        self.sd_m = sd_m;
+        self
+    }
+}
+
+impl From<&PositionEstimate> for TrackPoint {
+    fn from(e: &PositionEstimate) -> Self {
+        Self::new(e.t, e.position).with_sd(e.sd_m())
+    }
+}
 
 /// A causal track of estimates, sorted by time.
-pub type Track = Vec<(TimestampMs, Point2)>;
+pub type Track = Vec<TrackPoint>;
+
+/// The radius of the circle holding 95 % of an isotropic 2D Gaussian, in standard deviations
+/// of one axis: `sqrt(-2 ln 0.05)` = 2.4477 (the Rayleigh distribution's 95th percentile).
+pub const RADIUS_95_PER_SD: f64 = 2.447_746_830_680_816;
 
 /// A stream's floor estimate: `(time, floor)` at each change, sorted by time.
 pub type FloorTrack = Vec<(TimestampMs, i32)>;
@@ -39,6 +79,10 @@ pub struct WalkScore {
     /// Scored waypoints with a known true floor.
     #[serde(default)]
     pub floor_scored: usize,
+    /// The scheme's horizontal standard deviation (metres) at each scored waypoint, aligned
+    /// with `errors`: that of the estimate scored there; empty where the scheme has none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sd_m: Vec<Option<f64>>,
 }
 
 impl WalkScore {
@@ -52,6 +96,22 @@ impl WalkScore {
         // Waypoints without a true floor score `Some(0)` too: count hits among the known.
         let hits = self.errors.iter().filter(|e| e.2 == Some(0)).count();
         hits.saturating_sub(self.errors.len() - self.floor_scored)
+    }
+
+    /// `(scored points with an uncertainty, of them the points whose true position lies
+    /// inside the 95 % radius [`RADIUS_95_PER_SD`] x `sd_m`)`.
+    pub fn radius_95_hits(&self) -> (usize, usize) {
+        let mut with_sd = 0;
+        let mut inside = 0;
+        for (e, sd) in self.errors.iter().zip(&self.sd_m) {
+            if let Some(sd) = sd.filter(|sd| sd.is_finite() && *sd >= 0.0) {
+                with_sd += 1;
+                if e.1 <= RADIUS_95_PER_SD * sd {
+                    inside += 1;
+                }
+            }
+        }
+        (with_sd, inside)
     }
 }
 
@@ -70,17 +130,17 @@ pub fn evaal_errors(points: &[ScoredPoint]) -> Vec<f64> {
 ///
 /// ```
 /// use wipdr_core::{Point2, Waypoint};
-/// use wipdr_eval::scoring::score_track;
+/// use wipdr_eval::scoring::{TrackPoint, score_track};
 /// let wps = [Waypoint::new(0, Point2::new(0.0, 0.0)),
 ///            Waypoint::new(10, Point2::new(3.0, 4.0))];
-/// let track = vec![(5, Point2::new(0.0, 0.0))];
+/// let track = vec![TrackPoint::new(5, Point2::new(0.0, 0.0))];
 /// let s = score_track(&wps, &track, None);
 /// assert_eq!(s.skipped, 1);
 /// assert_eq!(s.errors, vec![(10, 5.0, Some(0))]);
 /// ```
 pub fn score_track(
     waypoints: &[Waypoint],
-    track: &[(TimestampMs, Point2)],
+    track: &[TrackPoint],
     score_from: Option<TimestampMs>,
 ) -> WalkScore {
     score_track_with_floors(waypoints, track, &[], score_from)
@@ -90,20 +150,23 @@ pub fn score_track(
 /// change, time-sorted), scored where the waypoints have floors (module docs).
 pub fn score_track_with_floors(
     waypoints: &[Waypoint],
-    track: &[(TimestampMs, Point2)],
+    track: &[TrackPoint],
     floors: &[(TimestampMs, i32)],
     score_from: Option<TimestampMs>,
 ) -> WalkScore {
     let mut out = WalkScore::default();
     let mut j = 0usize;
     let mut k = 0usize;
-    let mut latest: Option<Point2> = None;
+    let mut latest: Option<(Point2, Option<f64>)> = None;
     let mut floor: Option<i32> = None;
+    let mut any_sd = false;
     for w in waypoints {
-        while j < track.len() && track[j].0 <= w.t {
-            let p = track[j].1;
+        while j < track.len() && track[j].t <= w.t {
+            let p = track[j].position;
             if p.x.is_finite() && p.y.is_finite() {
-                latest = Some(p);
+                let sd = track[j].sd_m.filter(|sd| sd.is_finite() && *sd >= 0.0);
+                any_sd |= sd.is_some();
+                latest = Some((p, sd));
             }
             j += 1;
         }
@@ -115,7 +178,7 @@ pub fn score_track_with_floors(
             out.skipped += 1;
             continue;
         }
-        let Some(p) = latest else {
+        let Some((p, sd)) = latest else {
             out.skipped += 1;
             continue;
         };
@@ -127,6 +190,10 @@ pub fn score_track_with_floors(
             }
         };
         out.errors.push((w.t, (p - w.position).norm(), floor_error));
+        out.sd_m.push(sd);
+    }
+    if !any_sd {
+        out.sd_m.clear();
     }
     out
 }
@@ -143,7 +210,10 @@ mod tests {
     #[test]
     fn uses_latest_estimate_not_a_future_one() {
         let wps = [wp(10, 0.0), wp(20, 0.0)];
-        let track = vec![(10, Point2::new(1.0, 0.0)), (11, Point2::new(100.0, 0.0))];
+        let track = vec![
+            TrackPoint::new(10, Point2::new(1.0, 0.0)),
+            TrackPoint::new(11, Point2::new(100.0, 0.0)),
+        ];
         let s = score_track(&wps, &track, None);
         assert_eq!(s.errors, vec![(10, 1.0, Some(0)), (20, 100.0, Some(0))]);
     }
@@ -151,7 +221,7 @@ mod tests {
     #[test]
     fn score_from_skips_and_counts() {
         let wps = [wp(0, 0.0), wp(10, 0.0), wp(20, 0.0)];
-        let track = vec![(0, Point2::new(2.0, 0.0))];
+        let track = vec![TrackPoint::new(0, Point2::new(2.0, 0.0))];
         let s = score_track(&wps, &track, Some(10));
         assert_eq!(s.skipped, 1);
         assert_eq!(s.errors.len(), 2);
@@ -160,7 +230,10 @@ mod tests {
     #[test]
     fn nan_estimates_are_ignored() {
         let wps = [wp(10, 0.0)];
-        let track = vec![(1, Point2::new(1.0, 0.0)), (2, Point2::new(f64::NAN, 0.0))];
+        let track = vec![
+            TrackPoint::new(1, Point2::new(1.0, 0.0)),
+            TrackPoint::new(2, Point2::new(f64::NAN, 0.0)),
+        ];
         assert_eq!(
             score_track(&wps, &track, None).errors,
             vec![(10, 1.0, Some(0))]
@@ -175,13 +248,35 @@ mod tests {
             wp(30, 0.0).on_floor(-2),
             wp(40, 0.0),
         ];
-        let track = vec![(5, Point2::new(3.0, 4.0))];
+        let track = vec![TrackPoint::new(5, Point2::new(3.0, 4.0))];
         let s = score_track_with_floors(&wps, &track, &[(12, 0), (25, -2)], None);
         let floor_errors: Vec<Option<i32>> = s.errors.iter().map(|e| e.2).collect();
         assert_eq!(floor_errors, vec![None, Some(2), Some(0), Some(0)]);
         assert_eq!(s.floor_scored, 3);
         assert_eq!(s.floor_hits(), 1);
         assert_eq!(evaal_errors(&s.errors), vec![20.0, 35.0, 5.0, 5.0]);
+    }
+
+    #[test]
+    fn the_sd_of_the_scored_estimate_is_kept_and_counted_against_the_95_radius() {
+        let wps = [wp(10, 0.0), wp(20, 0.0), wp(30, 0.0)];
+        let track = vec![
+            TrackPoint::new(5, Point2::new(3.0, 4.0)).with_sd(Some(1.0)), // 5 m > 2.45 m
+            TrackPoint::new(15, Point2::new(1.0, 0.0)).with_sd(Some(1.0)), // 1 m inside
+            TrackPoint::new(25, Point2::new(1.0, 0.0)),                   // no sd
+        ];
+        let s = score_track(&wps, &track, None);
+        assert_eq!(s.sd_m, vec![Some(1.0), Some(1.0), None]);
+        assert_eq!(s.radius_95_hits(), (2, 1));
+        let no_sd: Track = track.iter().map(|p| p.with_sd(None)).collect();
+        assert!(score_track(&wps, &no_sd, None).sd_m.is_empty());
+    }
+
+    #[test]
+    fn the_95_radius_constant_holds_95_percent_of_a_2d_gaussian() {
+        // P(r <= R) = 1 - exp(-R^2 / 2) for unit per-axis sd.
+        let p = 1.0 - (-RADIUS_95_PER_SD * RADIUS_95_PER_SD / 2.0).exp();
+        assert!((p - 0.95).abs() < 1e-12);
     }
 
     proptest! {
@@ -194,7 +289,7 @@ mod tests {
             let mut wts = wts; wts.sort();
             let mut tts = tts; tts.sort();
             let wps: Vec<_> = wts.iter().map(|&t| wp(t, t as f64)).collect();
-            let track: Track = tts.iter().map(|&t| (t, Point2::new(0.0, 0.0))).collect();
+            let track: Track = tts.iter().map(|&t| TrackPoint::new(t, Point2::new(0.0, 0.0))).collect();
             let s = score_track(&wps, &track, from);
             prop_assert_eq!(s.errors.len() + s.skipped, wps.len());
             prop_assert!(s.errors.iter().all(|e| e.1.is_finite() && e.1 >= 0.0));

@@ -3,7 +3,7 @@
 //! evaluation, for every scheme: eval runs the same pipeline.
 
 use wipdr_eval::pipeline::{self, EvalConfig};
-use wipdr_eval::scoring::score_track;
+use wipdr_eval::scoring::{TrackPoint, score_track};
 
 mod common;
 use common::fixture_floor;
@@ -38,7 +38,7 @@ fn check(cfg: &EvalConfig) {
             let track: Vec<_> = pipeline::locate(&floor, &result.walk, scheme, cfg)
                 .unwrap()
                 .into_iter()
-                .map(|e| (e.t, e.position))
+                .map(|e| TrackPoint::from(&e))
                 .collect();
             let from = cfg
                 .score_from_first_scan

@@ -115,11 +115,15 @@ pub fn evaluate_and_report(
             "floors": report.floors,
             "walks": report.walks.iter().map(|w| {
                 let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
-                serde_json::json!({
+                let mut walk = serde_json::json!({
                     "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
                     "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
                     "p95": s.p95, "max": s.max, "errors": w.score.errors,
-                })
+                });
+                if !w.score.sd_m.is_empty() {
+                    walk["sd_m"] = serde_json::json!(w.score.sd_m);
+                }
+                walk
             }).collect::<Vec<_>>(),
             "schemes": report.schemes,
             "config": cfg,

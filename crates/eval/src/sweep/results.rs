@@ -301,6 +301,7 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             max: num(base + 7)?,
             floor_hit_rate: None,
             evaal: None,
+            radius_95_coverage: None,
         };
         rows.push(SweepRow {
             index: int(0)?,
