@@ -5,6 +5,7 @@
 use crate::pipeline::EvalError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use wipdr_fingerprint::interpolate::{AlongWalkConfig, InterpolationConfig, Kernel, SpatialConfig};
 use wipdr_fingerprint::propagation::PropagationConfig;
 use wipdr_fingerprint::walk_map::WalkMapConfig;
 use wipdr_fingerprint::{MatcherConfig, QueryFilter};
@@ -63,11 +64,51 @@ pub struct EvalConfig {
     /// The floor estimate from Wi-Fi and the barometer ([`FloorConfig`]), used where the
     /// radio map has floors (IPIN logfiles; ILC floors evaluated as one building).
     pub floor: FloorConfig,
+    /// Offline mode (`wipdr eval --offline`): every scheme but the `pdr` baseline is scored
+    /// on its whole-walk smoothed track ([`wipdr_positioning::smooth::smooth_fusion`]: the
+    /// scheme run forward and on the reversed walk, combined), which uses inputs after each
+    /// estimate's time. Default `false`: causal estimates, what a live user gets.
+    pub offline: bool,
 }
 
 impl Default for EvalConfig {
+    /// The best measured configuration (was `docs/configs/best.toml`; figures in
+    /// `docs/results/accuracy.md`): [`PositionerConfig::default`] (AP-matching index top 4,
+    /// map matching), the radio map interpolated along the training walks (1 m) and onto a
+    /// 3 m lattice (Gaussian kernel, sigma 3 m, radius 6 m), and the path-loss extension
+    /// into coverage gaps down to -85 dBm. [`EvalConfig::paper`] has the papers' settings;
+    /// `preset = "paper"` in a config file merges onto them instead.
     fn default() -> Self {
         let positioner = PositionerConfig::default();
+        let mut radio_map = WalkMapConfig::default();
+        radio_map.interpolation = Some(InterpolationConfig {
+            along_walk: Some(AlongWalkConfig::default()),
+            spatial: Some(SpatialConfig {
+                cell_m: 3.0,
+                radius_m: 6.0,
+                kernel: Kernel::Gaussian { sigma_m: 3.0 },
+                ..SpatialConfig::default()
+            }),
+        });
+        Self {
+            radio_map,
+            matcher: positioner.matcher,
+            map_matching: positioner.map_matching,
+            propagation: Some(PropagationConfig {
+                min_predicted_dbm: -85.0,
+                ..PropagationConfig::default()
+            }),
+            ..Self::paper()
+        }
+    }
+}
+
+impl EvalConfig {
+    /// The papers' settings: [`PositionerConfig::paper`] (WKNN k = 5, no map matching), the
+    /// radio map of the measured fingerprints alone (no interpolation, no path-loss
+    /// extension), every scheme at its own defaults.
+    pub fn paper() -> Self {
+        let positioner = PositionerConfig::paper();
         Self {
             radio_map: WalkMapConfig::default(),
             matcher: positioner.matcher,
@@ -84,6 +125,7 @@ impl Default for EvalConfig {
             propagation: None,
             propagation_is_coverage: false,
             floor: positioner.floor,
+            offline: false,
         }
     }
 }
@@ -113,15 +155,26 @@ impl EvalConfig {
             origin: source.to_string(),
             reason,
         };
-        let user: serde_json::Value = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
-        if let Some(fields) = user.as_object() {
+        let mut user: serde_json::Value = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let mut base = Self::default();
+        if let Some(fields) = user.as_object_mut() {
             for (key, instead) in REMOVED_KEYS {
                 if fields.contains_key(key) {
                     return Err(bad(format!("{key}: no longer a config key: {instead}")));
                 }
             }
+            match fields.remove("preset") {
+                None => {}
+                Some(serde_json::Value::String(p)) if p == "paper" => base = Self::paper(),
+                Some(serde_json::Value::String(p)) if p == "recommended" => {}
+                Some(other) => {
+                    return Err(bad(format!(
+                        "preset: expected \"paper\" or \"recommended\", got {other}"
+                    )));
+                }
+            }
         }
-        let cfg: Self = wipdr_positioning::merge::from_value_onto(user, &Self::default())
+        let cfg: Self = wipdr_positioning::merge::from_value_onto(user, &base)
             .map_err(|e| bad(e.to_string()))?;
         cfg.validate().map_err(|e| bad(e.to_string()))?;
         Ok(cfg)
@@ -208,8 +261,9 @@ impl EvalConfig {
     /// the scoring read. Built by exclusion, so that a field added later counts as a
     /// preparation input (safe: at worst a sweep prepares more often than it needs to).
     pub fn preparation_key(&self) -> String {
-        const RUN_ONLY: [&str; 6] = [
+        const RUN_ONLY: [&str; 7] = [
             "schemes",
+            "offline",
             "seed",
             "map_matching",
             "static_start",
@@ -234,6 +288,26 @@ impl EvalConfig {
 mod tests {
     use super::*;
     use wipdr_fingerprint::Metric;
+
+    #[test]
+    fn the_defaults_are_the_recommended_settings_and_paper_is_a_preset_away() {
+        let d = EvalConfig::default();
+        assert_eq!(d.matcher.kind(), "apindex");
+        assert!(d.map_matching && d.propagation.is_some() && d.radio_map.interpolation.is_some());
+        let p = EvalConfig::paper();
+        assert_eq!(p.matcher.kind(), "wknn");
+        assert!(!p.map_matching && p.propagation.is_none() && p.radio_map.interpolation.is_none());
+        let cfg = EvalConfig::from_toml("preset = \"paper\"\nmap_matching = true\n", "t").unwrap();
+        assert!(cfg.map_matching && cfg.propagation.is_none());
+        assert_eq!(
+            EvalConfig::from_toml("preset = \"recommended\"\n", "t").unwrap(),
+            d
+        );
+        let err = EvalConfig::from_toml("preset = \"best\"\n", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("preset"), "{err}");
+    }
 
     #[test]
     fn preparation_key_follows_what_prepare_reads() {
@@ -265,7 +339,10 @@ mod tests {
         let cfg =
             EvalConfig::from_toml("[matcher]\nk = 5\n[query]\nstrict = true", "t.toml").unwrap();
         match &cfg.matcher {
-            MatcherConfig::Wknn(k) => assert!(matches!(k.metric, Metric::SharedAp(_))),
+            MatcherConfig::Apindex(c) => {
+                assert!(matches!(c.metric, Metric::SharedAp(_)));
+                assert_eq!((c.k, c.top_offline, c.apply_threshold), (5, 4, false));
+            }
             other => panic!("{other:?}"),
         }
         assert_eq!(cfg.query.max_age_ms, EvalConfig::default().query.max_age_ms);

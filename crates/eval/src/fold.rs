@@ -168,16 +168,28 @@ impl FoldModel {
         if let Some(prop) = &cfg.propagation {
             let plan = &floor.data.plan;
             // Per floor: an AP's path-loss model is fitted on (and extends) one floor.
-            let extended = per_floor(&mut map, |m| {
+            // Data-dependent failures (a lattice over the limit because a training waypoint
+            // lies far off the floor) skip the extension of this fold, logged, as the trail
+            // raster does; the config itself was validated before.
+            let mut extended_map = map.clone();
+            match per_floor(&mut extended_map, |m| {
                 let models = fit_ap_models(m, prop)?;
                 extend_radio_map(m, &models, prop, |p| {
                     plan.outline.is_empty() || plan.is_walkable(p)
                 })
-            })
-            .map_err(fp_err)?;
-            tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
-            if cfg.propagation_is_coverage {
-                coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
+            }) {
+                Ok(extended) => {
+                    tracing::info!(floor = %floor.label, fold, ?extended, "radio map extended by path-loss models");
+                    map = extended_map;
+                    if cfg.propagation_is_coverage {
+                        coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
+                    }
+                }
+                Err(e) => tracing::warn!(
+                    floor = %floor.label,
+                    fold,
+                    "radio map not extended by path-loss models (skipped for this fold): {e}"
+                ),
             }
         }
         let segments = trails_of(training.iter().map(|w| w.waypoints.as_slice()));

@@ -23,6 +23,7 @@ use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::trails::TrailRaster;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps};
 use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_positioning::smooth::smooth_fusion;
 use wipdr_positioning::{
     FusionStage, PositionEstimate, Positioner, Site, samples_of, stream_seed, track_of,
 };
@@ -322,6 +323,21 @@ pub fn run_scheme(
     site.coverage = Some(walk.coverage.clone());
     site.trails = walk.trails.clone();
     let positioner = cfg.positioner(scheme.clone(), cfg.pdr);
+    if cfg.offline && start.is_none() {
+        let smoothed = smooth_fusion(
+            &site,
+            scheme,
+            &positioner,
+            stream_seed(cfg.seed, &walk.walk),
+            &walk.steps,
+            &walk.observations,
+        )
+        .map_err(|source| EvalError::Positioning {
+            floor: walk.floor.clone(),
+            source,
+        })?;
+        return Ok(smoothed.iter().map(TrackPoint::from).collect());
+    }
     let mut stage = FusionStage::with_scheme(
         &site,
         scheme,
@@ -362,7 +378,8 @@ pub fn run_scheme(
 /// streamed one by one through a full [`Positioner`] built from the walk's fold (radio map
 /// and calibration from the other folds' walks, as the protocol does). One row per estimate
 /// (after each step or fix; for `pdr`, first the true start). Its score at the waypoints
-/// equals what [`evaluate`] reports for that walk and scheme.
+/// equals what [`evaluate`] reports for that walk and scheme. With `cfg.offline` the
+/// track is [`Positioner::smooth`] after the whole walk (what `eval --offline` scores).
 pub fn locate(
     floor: &FloorInput,
     walk_id: &str,
@@ -427,7 +444,17 @@ pub fn locate_with(
     if let Some(id) = crate::fold::identity_of(walk) {
         positioner.set_pressure_references(model.pressure_references.clone(), id);
     }
-    Ok(track_of(&mut positioner, samples_of(walk), start))
+    let track = track_of(&mut positioner, samples_of(walk), start);
+    if !cfg.offline || start.is_some() {
+        return Ok(track);
+    }
+    // Offline: the whole stream re-estimated (the `pdr` baseline from the truth stays causal).
+    positioner
+        .smooth()
+        .map_err(|source| EvalError::Positioning {
+            floor: floor.label.clone(),
+            source,
+        })
 }
 
 /// Runs `schemes` over prepared walks and scores them.

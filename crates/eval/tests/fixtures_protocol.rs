@@ -65,7 +65,7 @@ fn test_walk_waypoints_never_reach_a_scheme() {
     let pdr = cfg.scheme("pdr").unwrap();
     let ta = pipeline::run_scheme(&pdr, a, None, &seeded).unwrap();
     let tb = pipeline::run_scheme(&pdr, b, None, &seeded).unwrap();
-    let shift = tb[0].1 - ta[0].1;
+    let shift = tb[0].position - ta[0].position;
     assert!((shift - wipdr_core::Vector2::new(500.0, -300.0)).norm() < 1e-9);
 }
 

@@ -71,3 +71,18 @@ fn locate_equals_eval_for_every_scheme_with_map_matching_and_med() {
     .unwrap();
     check(&cfg);
 }
+
+#[test]
+fn offline_locate_is_positioner_smooth_and_equals_offline_eval() {
+    check(&EvalConfig {
+        offline: true,
+        ..EvalConfig::default()
+    });
+}
+
+#[test]
+fn locate_equals_eval_with_the_papers_settings() {
+    let cfg = EvalConfig::from_toml("preset = \"paper\"\n", "test").unwrap();
+    assert_eq!(cfg, EvalConfig::paper());
+    check(&cfg);
+}

@@ -78,14 +78,17 @@ fn wifi_gets_closer_to_the_truth_in_coverage_gaps() {
         let report = pipeline::run_prepared(floors, &prepared, cfg, &schemes, &|| {}).unwrap();
         report.pooled["wifi"]
     };
-    let without = mean_of(&EvalConfig::default());
-    let with = mean_of(&EvalConfig {
-        propagation: Some(PropagationConfig {
-            min_predicted_dbm: -85.0,
-            ..PropagationConfig::default()
-        }),
-        ..EvalConfig::default()
+    // The defaults extend the map (-85 dBm); without = the same config with it off.
+    let with = EvalConfig::default();
+    assert_eq!(
+        with.propagation.as_ref().map(|p| p.min_predicted_dbm),
+        Some(-85.0)
+    );
+    let without = mean_of(&EvalConfig {
+        propagation: None,
+        ..with.clone()
     });
+    let with = mean_of(&with);
     println!(
         "site2/F2 wifi mean: {:.2} without, {:.2} with the extension",
         without.mean, with.mean

@@ -62,6 +62,7 @@ pub mod aws;
 pub mod baseline;
 pub mod ekf;
 pub mod kalman;
+pub mod offline;
 pub mod particle;
 pub mod point_mass;
 pub mod replay;

@@ -46,7 +46,36 @@ pub struct PositionerConfig {
 }
 
 impl Default for PositionerConfig {
+    /// The best measured configuration (`docs/results/accuracy.md`): the AP-matching index
+    /// over each scan's 4 strongest APs without an RSSI threshold around the shared-AP WKNN,
+    /// and map matching on. [`PositionerConfig::paper`] has the papers' settings.
     fn default() -> Self {
+        Self {
+            matcher: recommended_matcher(),
+            map_matching: true,
+            ..Self::paper()
+        }
+    }
+}
+
+/// The default matcher: the AP-matching index (paper 002 §3.2) with the top 4 offline APs and
+/// no online RSSI threshold (paper: top 2, -85 / -75 dBm), WKNN over the shared APs.
+pub fn recommended_matcher() -> MatcherConfig {
+    match MatcherConfig::defaults_for("apindex") {
+        Ok(MatcherConfig::Apindex(c)) => {
+            MatcherConfig::Apindex(wipdr_fingerprint::ap_index::ApIndexConfig {
+                top_offline: 4,
+                apply_threshold: false,
+                ..c
+            })
+        }
+        _ => MatcherConfig::default(),
+    }
+}
+
+impl PositionerConfig {
+    /// The papers' settings: WKNN (k = 5, shared-AP distance), no map matching, `ekf`.
+    pub fn paper() -> Self {
         Self {
             matcher: MatcherConfig::default(),
             query: default_query(),

@@ -59,6 +59,7 @@ pub mod merge;
 pub mod positioner;
 pub mod sample;
 pub mod site;
+pub mod smooth;
 
 pub use config::PositionerConfig;
 pub use error::PositioningError;

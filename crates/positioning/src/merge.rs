@@ -16,9 +16,11 @@
 //! use wipdr_positioning::PositionerConfig;
 //! use wipdr_fingerprint::{MatcherConfig, Metric};
 //! let cfg = PositionerConfig::from_toml("[matcher]\nk = 7").unwrap();
-//! // k set; the metric stays the context's shared-AP default.
+//! // k set; the kind (the AP index), its top 4 and the shared-AP metric stay the context's.
 //! match cfg.matcher {
-//!     MatcherConfig::Wknn(c) => assert!(c.k == 7 && matches!(c.metric, Metric::SharedAp(_))),
+//!     MatcherConfig::Apindex(c) => {
+//!         assert!(c.k == 7 && c.top_offline == 4 && matches!(c.metric, Metric::SharedAp(_)))
+//!     }
 //!     _ => unreachable!(),
 //! }
 //! let err = PositionerConfig::from_toml("[scheme]\nscheme = \"ekf\"\nr_wifii = 3.0").unwrap_err();
@@ -148,16 +150,16 @@ mod tests {
 
     #[test]
     fn another_kind_starts_from_its_own_defaults() {
-        let cfg =
-            PositionerConfig::from_toml("[matcher]\nkind = \"apindex\"\ntop_offline = 4").unwrap();
-        let want = match wipdr_fingerprint::MatcherConfig::defaults_for("apindex").unwrap() {
-            wipdr_fingerprint::MatcherConfig::Apindex(mut a) => {
-                a.top_offline = 4;
+        // The default kind is the AP index: a WKNN section starts from the WKNN defaults.
+        let cfg = PositionerConfig::from_toml("[matcher]\nkind = \"wknn\"\nk = 4").unwrap();
+        let want = match wipdr_fingerprint::MatcherConfig::defaults_for("wknn").unwrap() {
+            wipdr_fingerprint::MatcherConfig::Wknn(mut a) => {
+                a.k = 4;
                 a
             }
             _ => unreachable!(),
         };
-        assert_eq!(cfg.matcher, wipdr_fingerprint::MatcherConfig::Apindex(want));
+        assert_eq!(cfg.matcher, wipdr_fingerprint::MatcherConfig::Wknn(want));
     }
 
     #[test]

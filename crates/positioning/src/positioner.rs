@@ -312,6 +312,19 @@ impl FusionStage {
 pub struct Positioner {
     frontend: Frontend,
     fusion: FusionStage,
+    /// What [`Positioner::smooth`] needs: the site, the config and the events so far.
+    smoothing: Option<Smoothing>,
+}
+
+/// The inputs of [`Positioner::smooth`]: how the fusion stage was built and every event.
+#[derive(Debug)]
+struct Smoothing {
+    site: Site,
+    config: PositionerConfig,
+    steps: Vec<StepEvent>,
+    fixes: Vec<WifiObservation>,
+    /// The front end's floor after each event: `(time, floor)`.
+    floors: Vec<(TimestampMs, Option<i32>)>,
 }
 
 impl Positioner {
@@ -331,20 +344,86 @@ impl Positioner {
                 config.floor,
             ),
             fusion: FusionStage::new(site, config, config.seed, start)?,
+            // A known start is a causal prior the backward run cannot use: no smoothing.
+            smoothing: start.is_none().then(|| Smoothing {
+                site: site.clone(),
+                config: config.clone(),
+                steps: Vec::new(),
+                fixes: Vec::new(),
+                floors: Vec::new(),
+            }),
         })
     }
 
-    /// A positioner from its two stages (e.g. a stream matcher of one's own).
+    /// A positioner from its two stages (e.g. a stream matcher of one's own); it cannot
+    /// [`smooth`](Positioner::smooth) (the stages do not say how they were built).
     pub fn from_stages(frontend: Frontend, fusion: FusionStage) -> Self {
-        Self { frontend, fusion }
+        Self {
+            frontend,
+            fusion,
+            smoothing: None,
+        }
     }
 
     /// Feeds one sample. Returns the new estimate when the sample completed a step or a fix
     /// (and the scheme has an estimate); `None` otherwise (see [`Positioner::estimate`]).
     pub fn push(&mut self, sample: &Sample) -> Option<PositionEstimate> {
         let event = self.frontend.push(sample)?;
+        if let Some(sm) = self.smoothing.as_mut() {
+            let t = match &event {
+                Event::Step(s) => {
+                    sm.steps.push(*s);
+                    s.t
+                }
+                Event::Fix(f) => {
+                    sm.fixes.push(f.clone());
+                    f.t
+                }
+            };
+            if self.frontend.floors.is_some() {
+                sm.floors.push((t, self.frontend.floor()));
+            }
+        }
         self.fusion.push(&event)?;
         self.estimate()
+    }
+
+    /// The whole stream so far re-estimated offline: the scheme run forward and on the
+    /// time-reversed stream over every step and fix received, combined at each input time
+    /// ([`crate::smooth::smooth_fusion`]); each estimate uses the inputs after it too (what
+    /// `wipdr eval --offline` scores). The live estimate is not changed. Errors for a
+    /// positioner built [`from_stages`](Positioner::from_stages) or with a known start.
+    pub fn smooth(&self) -> Result<Vec<PositionEstimate>, PositioningError> {
+        let sm = self
+            .smoothing
+            .as_ref()
+            .ok_or_else(|| PositioningError::InvalidConfig {
+                path: "smooth".into(),
+                reason: "this positioner was built from stages or with a known start; \
+                         build it with Positioner::new without a start to smooth"
+                    .into(),
+            })?;
+        let mut track = crate::smooth::smooth_fusion(
+            &sm.site,
+            &sm.config.scheme,
+            &sm.config,
+            sm.config.seed,
+            &sm.steps,
+            &sm.fixes,
+        )?;
+        if !sm.floors.is_empty() {
+            // The front end's floor (Wi-Fi and barometer), as the live estimate reports it.
+            let mut j = 0usize;
+            let mut floor = None;
+            for e in &mut track {
+                while j < sm.floors.len() && sm.floors[j].0 <= e.t {
+                    floor = sm.floors[j].1;
+                    j += 1;
+                }
+                e.floor = floor;
+            }
+        }
+        Ok(track)
     }
 
     /// Gives the floor estimate barometric references for this stream

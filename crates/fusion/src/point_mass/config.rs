@@ -39,6 +39,12 @@ pub struct PointMassConfig {
     /// Radius around the most probable cell over which the estimate is averaged, metres
     /// (0: the whole posterior).
     pub estimate_radius_m: f64,
+    /// Standard deviation added (in quadrature, per axis) to the posterior's spread in the
+    /// reported covariance, metres: the walker's offset from the placed PDR track (its local
+    /// shape error), which the lattice over placements does not hold. 2.5 m puts the truth
+    /// inside the 95 % radius at 92 % of the five ILC floors' waypoints (81.6 % without;
+    /// `docs/results/accuracy.md`). Moves no estimate. wipdr's own (no paper value).
+    pub sd_floor_m: f64,
     /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
     /// matcher's distance unit; 0: every fix trusted alike).
     pub quality_distance: f64,
@@ -74,6 +80,7 @@ impl Default for PointMassConfig {
             gap_sd_m: 20.0,
             recovery: 1e-6,
             estimate_radius_m: 10.0,
+            sd_floor_m: 2.5,
             quality_distance: 0.0,
             quality_softness: 5.0,
             mode_radius_m: 5.0,
@@ -110,6 +117,7 @@ impl PointMassConfig {
             ("gap_distance_m", self.gap_distance_m),
             ("recovery", self.recovery),
             ("estimate_radius_m", self.estimate_radius_m),
+            ("sd_floor_m", self.sd_floor_m),
             ("mode_radius_m", self.mode_radius_m),
             ("quality_distance", self.quality_distance),
             ("trail_sd_m", self.trail_sd_m),

@@ -151,7 +151,11 @@ impl Fuser for PointMassFilter {
         }
         let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
         let p = Point2::from(o + self.pdr);
-        (p.x.is_finite() && p.y.is_finite())
-            .then(|| Estimate::point(self.t, p, self.guard.diagnostics()))
+        let mut covariance = self.spread_about(o);
+        crate::kalman::enforce_symmetric_pd(&mut covariance);
+        (p.x.is_finite() && p.y.is_finite()).then(|| Estimate {
+            covariance: Some(covariance),
+            ..Estimate::point(self.t, p, self.guard.diagnostics())
+        })
     }
 }

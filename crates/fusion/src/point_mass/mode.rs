@@ -155,4 +155,32 @@ impl PointMassFilter {
         }
         if w > 0.0 { sum / w } else { c }
     }
+
+    /// Second moment of the whole posterior (the active window) about `centre`, m², plus a
+    /// cell's own spread (`cell² / 12` per axis) and `sd_floor_m²`: the estimate's covariance,
+    /// which keeps a second mode's weight as uncertainty rather than hiding it.
+    pub(super) fn spread_about(&self, centre: Vector2) -> nalgebra::Matrix2<f64> {
+        let nx = self.lattice.cols();
+        let (x0, x1, y0, y1) = self.active;
+        let (mut sxx, mut sxy, mut syy, mut w) = (0.0, 0.0, 0.0, 0.0);
+        for r in y0..=y1 {
+            let row = &self.prob[r * nx + x0..=r * nx + x1];
+            for (col, &p) in (x0..=x1).zip(row) {
+                if p <= 0.0 {
+                    continue;
+                }
+                let d = self.offset_of(r * nx + col) - centre;
+                sxx += p * d.x * d.x;
+                sxy += p * d.x * d.y;
+                syy += p * d.y * d.y;
+                w += p;
+            }
+        }
+        let cell =
+            self.cfg.cell_m * self.cfg.cell_m / 12.0 + self.cfg.sd_floor_m * self.cfg.sd_floor_m;
+        if !(w > 0.0 && w.is_finite()) {
+            return nalgebra::Matrix2::new(cell, 0.0, 0.0, cell);
+        }
+        nalgebra::Matrix2::new(sxx / w + cell, sxy / w, sxy / w, syy / w + cell)
+    }
 }
