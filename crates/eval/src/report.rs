@@ -155,6 +155,27 @@ impl EvalReport {
         }
     }
 
+    /// The JSON document `wipdr eval --json` writes (the schema in the module docs), with
+    /// `config` (the evaluation config, serialised) as its `"config"`. `wipdr eval merge`
+    /// writes the same document from shard files, so a merged run is byte-identical to the
+    /// unsharded one.
+    pub fn json_document(&self, config: &serde_json::Value) -> serde_json::Value {
+        serde_json::json!({
+            "pooled": self.pooled,
+            "floors": self.floors,
+            "walks": self.walks.iter().map(|w| {
+                let s = ErrorStats::from_errors(&w.score.values());
+                serde_json::json!({
+                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
+                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
+                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
+                })
+            }).collect::<Vec<_>>(),
+            "schemes": self.schemes,
+            "config": config,
+        })
+    }
+
     /// A plain-text table: one block per floor and one pooled, a row per scheme.
     pub fn table(&self) -> String {
         use std::fmt::Write;

@@ -210,6 +210,36 @@ pub struct ShardId {
     pub count: usize,
 }
 
+impl std::str::FromStr for ShardId {
+    type Err = SweepError;
+
+    /// Parses `I/N` (`0 <= I < N`), the form of `--shard`.
+    ///
+    /// ```
+    /// use wipdr_eval::sweep::ShardId;
+    /// let s: ShardId = "1/4".parse().unwrap();
+    /// assert_eq!((s.index, s.count), (1, 4));
+    /// assert!("4/4".parse::<ShardId>().is_err());
+    /// assert!("1".parse::<ShardId>().is_err());
+    /// ```
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = |why: &str| SweepError::Spec(format!("shard {s:?}: {why}"));
+        let (i, n) = s
+            .split_once('/')
+            .ok_or_else(|| bad("expected I/N, e.g. 0/4"))?;
+        let whole = |v: &str| {
+            v.trim()
+                .parse::<usize>()
+                .map_err(|_| bad("I and N must be whole numbers, e.g. 0/4"))
+        };
+        let (index, count) = (whole(i)?, whole(n)?);
+        if count == 0 || index >= count {
+            return Err(bad("need 0 <= I < N"));
+        }
+        Ok(Self { index, count })
+    }
+}
+
 impl std::fmt::Display for ShardId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{}/{}", self.index, self.count)
@@ -383,7 +413,7 @@ fn short(v: Option<&Value>) -> String {
 }
 
 /// The dotted paths where two JSON values differ, with both values, at most [`MAX_NAMED`].
-fn named_differences(a: &Value, b: &Value) -> String {
+pub(crate) fn named_differences(a: &Value, b: &Value) -> String {
     let mut found = Vec::new();
     let mut total = 0;
     diff_paths(a, b, "", &mut found, &mut total);
@@ -434,7 +464,7 @@ fn note(
     }
 }
 
-fn data_differences(a: &DataIdentity, b: &DataIdentity) -> String {
+pub(crate) fn data_differences(a: &DataIdentity, b: &DataIdentity) -> String {
     let labels = |d: &DataIdentity| d.floors.iter().map(|f| f.label.clone()).collect::<Vec<_>>();
     if a.floors.len() != b.floors.len() || labels(a) != labels(b) {
         return format!("floors {:?} vs {:?}", labels(a), labels(b));
