@@ -34,7 +34,7 @@
 
 use crate::pipeline::{self, EvalConfig, EvalError, FloorInput};
 use crate::report::{EvalReport, WalkResult};
-use crate::sweep::identity::{data_differences, named_differences};
+use crate::sweep::identity::{data_difference, hashed_difference};
 use crate::sweep::{DataIdentity, ShardId, data_identity, json_hash};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -155,14 +155,11 @@ impl EvalIdentity {
                 self.format, other.format
             ));
         }
-        if self.config_hash != other.config_hash {
-            out.push(format!(
-                "config differs ({} vs {}): {}",
-                self.config_hash,
-                other.config_hash,
-                named_differences(&self.config, &other.config)
-            ));
-        }
+        out.extend(hashed_difference(
+            "config",
+            (&self.config_hash, &self.config),
+            (&other.config_hash, &other.config),
+        ));
         if self.schemes != other.schemes {
             out.push(format!(
                 "schemes differ: {} vs {}",
@@ -170,12 +167,7 @@ impl EvalIdentity {
                 other.schemes.join(",")
             ));
         }
-        if self.data != other.data {
-            out.push(format!(
-                "data differs: {}",
-                data_differences(&self.data, &other.data)
-            ));
-        }
+        out.extend(data_difference(&self.data, &other.data));
         if out.is_empty() && self.items != other.items {
             out.push(format!(
                 "work items differ: {} vs {}",

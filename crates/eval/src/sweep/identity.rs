@@ -354,28 +354,17 @@ impl RunIdentity {
                 self.format, other.format
             ));
         }
-        if self.spec_hash != other.spec_hash {
-            out.push(format!(
-                "spec differs ({} vs {}): {}",
-                self.spec_hash,
-                other.spec_hash,
-                named_differences(&self.spec, &other.spec)
-            ));
-        }
-        if self.base_hash != other.base_hash {
-            out.push(format!(
-                "base config differs ({} vs {}): {}",
-                self.base_hash,
-                other.base_hash,
-                named_differences(&self.base, &other.base)
-            ));
-        }
-        if self.data != other.data {
-            out.push(format!(
-                "data differs: {}",
-                data_differences(&self.data, &other.data)
-            ));
-        }
+        out.extend(hashed_difference(
+            "spec",
+            (&self.spec_hash, &self.spec),
+            (&other.spec_hash, &other.spec),
+        ));
+        out.extend(hashed_difference(
+            "base config",
+            (&self.base_hash, &self.base),
+            (&other.base_hash, &other.base),
+        ));
+        out.extend(data_difference(&self.data, &other.data));
         if out.is_empty() && (self.configs != other.configs || self.columns != other.columns) {
             out.push(format!(
                 "spec expands differently: {} configs {:?} vs {} configs {:?}",
@@ -412,8 +401,28 @@ fn short(v: Option<&Value>) -> String {
     }
 }
 
+/// `"{what} differs (hash vs hash): the differing fields"` when two hashed values' hashes
+/// differ (`(hash, value)` each).
+pub(crate) fn hashed_difference(
+    what: &str,
+    (hash_a, a): (&str, &Value),
+    (hash_b, b): (&str, &Value),
+) -> Option<String> {
+    (hash_a != hash_b).then(|| {
+        format!(
+            "{what} differs ({hash_a} vs {hash_b}): {}",
+            named_differences(a, b)
+        )
+    })
+}
+
+/// `"data differs: ..."` naming the floors that differ, when the data differ.
+pub(crate) fn data_difference(a: &DataIdentity, b: &DataIdentity) -> Option<String> {
+    (a != b).then(|| format!("data differs: {}", data_differences(a, b)))
+}
+
 /// The dotted paths where two JSON values differ, with both values, at most [`MAX_NAMED`].
-pub(crate) fn named_differences(a: &Value, b: &Value) -> String {
+fn named_differences(a: &Value, b: &Value) -> String {
     let mut found = Vec::new();
     let mut total = 0;
     diff_paths(a, b, "", &mut found, &mut total);
@@ -464,7 +473,7 @@ fn note(
     }
 }
 
-pub(crate) fn data_differences(a: &DataIdentity, b: &DataIdentity) -> String {
+fn data_differences(a: &DataIdentity, b: &DataIdentity) -> String {
     let labels = |d: &DataIdentity| d.floors.iter().map(|f| f.label.clone()).collect::<Vec<_>>();
     if a.floors.len() != b.floors.len() || labels(a) != labels(b) {
         return format!("floors {:?} vs {:?}", labels(a), labels(b));
