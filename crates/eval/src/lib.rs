@@ -40,5 +40,6 @@ pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;
 pub mod scoring;
+pub mod shard;
 pub mod sweep;
 pub mod wifi_stats;

@@ -233,13 +233,30 @@ fn check_enough_walks(f: &FloorInput) -> Result<(), EvalError> {
 
 /// Turns every walk of `floors` into scheme inputs under the protocol folds.
 pub fn prepare(floors: &[FloorInput], cfg: &EvalConfig) -> Result<Vec<PreparedWalk>, EvalError> {
-    let mut jobs = Vec::new();
+    prepare_items(floors, cfg, &work_items(floors)?)
+}
+
+/// The work items of an evaluation: `(floor index, fold)` for every fold of every floor,
+/// floor by floor, folds in order (checking each floor has enough walks for its folds).
+/// A work item is one fold's model (radio map and calibration from the floor's other folds)
+/// and its test walks; [`crate::shard`] spreads them over machines.
+pub fn work_items(floors: &[FloorInput]) -> Result<Vec<(usize, usize)>, EvalError> {
+    let mut items = Vec::new();
     for (fi, f) in floors.iter().enumerate() {
         check_enough_walks(f)?;
-        for fold in 0..crate::fold::fold_count(f) {
-            jobs.push((fi, fold));
-        }
+        items.extend((0..crate::fold::fold_count(f)).map(|fold| (fi, fold)));
     }
+    Ok(items)
+}
+
+/// [`prepare`] of the work items `jobs` only (from [`work_items`]): each fold still learns
+/// from all of its floor's other folds, so the result is the matching part of [`prepare`]'s,
+/// in the same order.
+pub fn prepare_items(
+    floors: &[FloorInput],
+    cfg: &EvalConfig,
+    jobs: &[(usize, usize)],
+) -> Result<Vec<PreparedWalk>, EvalError> {
     let per_fold: Vec<Result<Vec<PreparedWalk>, EvalError>> = jobs
         .par_iter()
         .map(|&(fi, fold)| prepare_fold(&floors[fi], fi, fold, cfg))

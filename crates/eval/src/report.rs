@@ -9,6 +9,7 @@
 //!   "walks":  [ { "floor", "walk", "fold", "scheme", "count", "skipped", "mean", "p95",
 //!                 "max", "errors": [[t_ms, metres, floor_error], ...],
 //!                 "sd_m": [metres or null, ...] }, ... ],
+//!   "mode": "causal" | "offline",
 //!   "config": { ...the evaluation config used... }
 //! }
 //! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max",
@@ -168,6 +169,36 @@ impl EvalReport {
             floor_order,
             walks,
         }
+    }
+
+    /// The JSON document `wipdr eval --json` writes (the schema in the module docs), with
+    /// `config` (the evaluation config, serialised) as its `"config"`. `wipdr eval merge`
+    /// writes the same document from shard files, so a merged run is byte-identical to the
+    /// unsharded one.
+    pub fn json_document(&self, config: &serde_json::Value) -> serde_json::Value {
+        serde_json::json!({
+            "pooled": self.pooled,
+            "floors": self.floors,
+            "walks": self.walks.iter().map(|w| {
+                let s = ErrorStats::from_errors(&w.score.values());
+                let mut walk = serde_json::json!({
+                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
+                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
+                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
+                });
+                if !w.score.sd_m.is_empty() {
+                    walk["sd_m"] = serde_json::json!(w.score.sd_m);
+                }
+                walk
+            }).collect::<Vec<_>>(),
+            "schemes": self.schemes,
+            "mode": if config.get("offline").and_then(serde_json::Value::as_bool) == Some(true) {
+                "offline"
+            } else {
+                "causal"
+            },
+            "config": config,
+        })
     }
 
     /// A plain-text table: one block per floor and one pooled, a row per scheme.

@@ -1,16 +1,24 @@
-//! `wipdr eval`: the protocol of `docs/evaluation.md` on recorded walks, for any schemes.
+//! `wipdr eval`: the protocol of `docs/evaluation.md` on recorded walks, for any schemes;
+//! `--shard I/N` runs one slice of it and `wipdr eval merge` joins the slices
+//! ([`wipdr_eval::shard`]).
 
 use crate::{data, eval_plots, progress};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
-use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
+use wipdr_eval::pipeline::{self, EvalConfig, FloorInput, PreparedWalk};
 use wipdr_eval::report::EvalReport;
+use wipdr_eval::shard::{self, EvalIdentity, ShardReport};
+use wipdr_eval::sweep::ShardId;
 
 /// Arguments of `wipdr eval`.
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct Args {
+    /// `merge` joins shard files.
+    #[command(subcommand)]
+    pub merge: Option<Sub>,
     /// Floor folders (ILC layout: `path_data_files/`, `floor_info.json`, `geojson_map.json`).
-    #[arg(long, num_args = 1.., required = true)]
+    #[arg(long, num_args = 1..)]
     pub data: Vec<PathBuf>,
     /// Schemes to run, comma separated (wifi, pdr, ekf, aekf, akf, rkf, arkf, aws, tcpf, pf, apf, rof).
     #[arg(
@@ -39,11 +47,31 @@ pub struct Args {
     /// waypoint), indices from N on in one row: how fast each scheme settles.
     #[arg(long, value_name = "N")]
     pub by_index: Option<usize>,
+    /// Run one deterministic slice `I/N` of the work items (floor x fold: items k with
+    /// k % N == I) and write a shard file with `--json`, for `wipdr eval merge`.
+    #[arg(long, requires = "json", conflicts_with = "plots")]
+    pub shard: Option<String>,
     /// Offline mode: score each scheme's whole-walk smoothed track (forward and backward
     /// runs combined; estimates use inputs after their time), not the causal one. Same as
     /// `offline = true` in the config.
     #[arg(long)]
     pub offline: bool,
+}
+
+/// `wipdr eval merge`.
+#[derive(Debug, clap::Subcommand)]
+pub enum Sub {
+    /// Join the shard files of one run (`wipdr eval --shard I/N --json PART`) into the JSON
+    /// of the unsharded run (refused unless they are all N shards of one run: same config,
+    /// schemes and data, each shard once).
+    Merge {
+        /// Output JSON (the same document as `wipdr eval --json`).
+        #[arg(long)]
+        json: PathBuf,
+        /// Shard files.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+    },
 }
 
 /// Reads an evaluation config file (TOML), or the defaults.
@@ -68,13 +96,39 @@ pub fn evaluate_and_report(
     plot_walks: usize,
     plot_worst: bool,
 ) -> Result<EvalReport> {
+    let items = pipeline::work_items(floors)?;
+    let (prepared, report) = evaluate_items(floors, cfg, schemes, &items)?;
+    check_scored(&report)?;
+    if let Some(path) = json {
+        write_json(path, &report.json_document(&serde_json::to_value(cfg)?))?;
+    }
+    if let Some(dir) = plots {
+        let options = eval_plots::PlotOptions {
+            walks_per_floor: plot_walks,
+            worst_of: plot_worst.then(|| schemes.last().cloned()).flatten(),
+            ..eval_plots::PlotOptions::default()
+        };
+        let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, &options)?;
+        println!("wrote {} plots into {}", files, dir.display());
+    }
+    Ok(report)
+}
+
+/// Prepares and runs the work items `items` (from [`pipeline::work_items`]) and prints the
+/// run's summary line and table.
+fn evaluate_items(
+    floors: &[FloorInput],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    items: &[(usize, usize)],
+) -> Result<(Vec<PreparedWalk>, EvalReport)> {
     for s in schemes {
         cfg.scheme(s)?;
     }
     let started = std::time::Instant::now();
     let prepared = {
         let pb = progress::bar(floors.len() as u64, "preparing");
-        let p = pipeline::prepare(floors, cfg)?;
+        let p = pipeline::prepare_items(floors, cfg, items)?;
         pb.finish_and_clear();
         p
     };
@@ -117,42 +171,58 @@ pub fn evaluate_and_report(
         }
     );
     print!("{}", report.table());
-    check_scored(&report)?;
-    if let Some(path) = json {
-        crate::plotting::ensure_parent(path)?;
-        let value = serde_json::json!({
-            "pooled": report.pooled,
-            "floors": report.floors,
-            "walks": report.walks.iter().map(|w| {
-                let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
-                let mut walk = serde_json::json!({
-                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
-                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
-                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
-                });
-                if !w.score.sd_m.is_empty() {
-                    walk["sd_m"] = serde_json::json!(w.score.sd_m);
-                }
-                walk
-            }).collect::<Vec<_>>(),
-            "schemes": report.schemes,
-            "mode": if cfg.offline { "offline" } else { "causal" },
-            "config": cfg,
-        });
-        std::fs::write(path, serde_json::to_string_pretty(&value)?)
-            .with_context(|| format!("writing {}", path.display()))?;
-        println!("\nwrote {}", path.display());
+    Ok((prepared, report))
+}
+
+/// Writes `document` (an evaluation's JSON) to `path`.
+fn write_json(path: &Path, document: &serde_json::Value) -> Result<()> {
+    crate::plotting::ensure_parent(path)?;
+    std::fs::write(path, serde_json::to_string_pretty(document)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("\nwrote {}", path.display());
+    Ok(())
+}
+
+/// `wipdr eval --shard I/N`: runs the shard's work items and writes its shard file.
+fn run_shard(
+    floors: &[FloorInput],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    shard: ShardId,
+    json: &Path,
+) -> Result<EvalReport> {
+    for s in schemes {
+        cfg.scheme(s)?;
     }
-    if let Some(dir) = plots {
-        let options = eval_plots::PlotOptions {
-            walks_per_floor: plot_walks,
-            worst_of: plot_worst.then(|| schemes.last().cloned()).flatten(),
-            ..eval_plots::PlotOptions::default()
-        };
-        let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, &options)?;
-        println!("wrote {} plots into {}", files, dir.display());
-    }
+    let identity = EvalIdentity::new(floors, cfg, schemes, shard)?;
+    let items = shard::shard_items(&identity.items, shard);
+    println!(
+        "shard {shard}: {} of {} work items (floor x fold); figures below are this shard's only",
+        items.len(),
+        identity.items.len()
+    );
+    let (_, report) = evaluate_items(floors, cfg, schemes, &items)?;
+    ShardReport::new(identity, items, report.clone()).write(json)?;
+    println!(
+        "\nwrote shard file {} (join all {} with `wipdr eval merge PARTS... --json OUT`)",
+        json.display(),
+        shard.count
+    );
     Ok(report)
+}
+
+/// `wipdr eval merge`: the shards' JSON as the unsharded run writes it.
+fn run_merge(parts: &[PathBuf], json: &Path) -> Result<()> {
+    let merged = shard::merge(parts)?;
+    println!(
+        "merged {} shard files: {} walk results on {} floor(s)\n",
+        merged.count,
+        merged.report.walks.len(),
+        merged.report.floor_order.len()
+    );
+    print!("{}", merged.report.table());
+    check_scored(&merged.report)?;
+    write_json(json, &merged.report.json_document(&merged.config))
 }
 
 /// Fails when a scheme scored no waypoint (its 0.00 m would read as a result), and reports
@@ -184,18 +254,33 @@ fn check_scored(report: &EvalReport) -> Result<()> {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(Sub::Merge { json, parts }) = &args.merge {
+        return run_merge(parts, json);
+    }
+    if args.data.is_empty() {
+        bail!("--data FLOOR_DIR... is required");
+    }
+    let shard = args
+        .shard
+        .as_deref()
+        .map(str::parse::<ShardId>)
+        .transpose()?;
     let mut cfg = load_config(args.config.as_deref())?;
     cfg.offline |= args.offline;
     let floors = data::load_floors(&args.data)?;
-    let report = evaluate_and_report(
-        &floors,
-        &cfg,
-        &args.schemes,
-        args.json.as_deref(),
-        args.plots.as_deref(),
-        args.plot_walks,
-        args.plot_worst,
-    )?;
+    let report = match (shard, args.json.as_deref()) {
+        (Some(shard), Some(json)) => run_shard(&floors, &cfg, &args.schemes, shard, json)?,
+        (Some(_), None) => bail!("--shard writes a shard file: give --json PART.json"),
+        (None, _) => evaluate_and_report(
+            &floors,
+            &cfg,
+            &args.schemes,
+            args.json.as_deref(),
+            args.plots.as_deref(),
+            args.plot_walks,
+            args.plot_worst,
+        )?,
+    };
     if let Some(last) = args.by_index {
         println!(
             "\npooled error by waypoint index within the walk (mean m / share of the scheme's summed error)"

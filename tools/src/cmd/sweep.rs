@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
-use wipdr_eval::sweep::{self, RunIdentity, SweepOptions, SweepSpec};
+use wipdr_eval::sweep::{self, RunIdentity, ShardId, SweepOptions, SweepSpec};
 
 /// Arguments of `wipdr sweep`.
 #[derive(Debug, clap::Args)]
@@ -59,15 +59,6 @@ enum Sub {
         #[arg(required = true)]
         shards: Vec<PathBuf>,
     },
-}
-
-fn parse_shard(s: &str) -> Result<(usize, usize)> {
-    let (i, n) = s.split_once('/').context("--shard takes I/N, e.g. 0/4")?;
-    let (i, n): (usize, usize) = (i.trim().parse()?, n.trim().parse()?);
-    if n == 0 || i >= n {
-        bail!("--shard {s}: need 0 <= I < N");
-    }
-    Ok((i, n))
 }
 
 /// The command line that continues a stopped sweep: this one, with `--resume` added.
@@ -153,7 +144,12 @@ pub fn run(args: Args) -> Result<()> {
     let spec: SweepSpec =
         toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
     let base = crate::cmd::eval::load_config(args.base.as_deref())?;
-    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    let shard = args
+        .shard
+        .as_deref()
+        .map(str::parse::<ShardId>)
+        .transpose()?
+        .map(|s| (s.index, s.count));
     // Checked before reading any data: a sweep too large to run is refused at once.
     let limit = args.config_limit.unwrap_or(sweep::DEFAULT_CONFIG_LIMIT);
     let total = spec.check(limit)?;

@@ -210,6 +210,36 @@ pub struct ShardId {
     pub count: usize,
 }
 
+impl std::str::FromStr for ShardId {
+    type Err = SweepError;
+
+    /// Parses `I/N` (`0 <= I < N`), the form of `--shard`.
+    ///
+    /// ```
+    /// use wipdr_eval::sweep::ShardId;
+    /// let s: ShardId = "1/4".parse().unwrap();
+    /// assert_eq!((s.index, s.count), (1, 4));
+    /// assert!("4/4".parse::<ShardId>().is_err());
+    /// assert!("1".parse::<ShardId>().is_err());
+    /// ```
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = |why: &str| SweepError::Spec(format!("shard {s:?}: {why}"));
+        let (i, n) = s
+            .split_once('/')
+            .ok_or_else(|| bad("expected I/N, e.g. 0/4"))?;
+        let whole = |v: &str| {
+            v.trim()
+                .parse::<usize>()
+                .map_err(|_| bad("I and N must be whole numbers, e.g. 0/4"))
+        };
+        let (index, count) = (whole(i)?, whole(n)?);
+        if count == 0 || index >= count {
+            return Err(bad("need 0 <= I < N"));
+        }
+        Ok(Self { index, count })
+    }
+}
+
 impl std::fmt::Display for ShardId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{}/{}", self.index, self.count)
@@ -324,28 +354,17 @@ impl RunIdentity {
                 self.format, other.format
             ));
         }
-        if self.spec_hash != other.spec_hash {
-            out.push(format!(
-                "spec differs ({} vs {}): {}",
-                self.spec_hash,
-                other.spec_hash,
-                named_differences(&self.spec, &other.spec)
-            ));
-        }
-        if self.base_hash != other.base_hash {
-            out.push(format!(
-                "base config differs ({} vs {}): {}",
-                self.base_hash,
-                other.base_hash,
-                named_differences(&self.base, &other.base)
-            ));
-        }
-        if self.data != other.data {
-            out.push(format!(
-                "data differs: {}",
-                data_differences(&self.data, &other.data)
-            ));
-        }
+        out.extend(hashed_difference(
+            "spec",
+            (&self.spec_hash, &self.spec),
+            (&other.spec_hash, &other.spec),
+        ));
+        out.extend(hashed_difference(
+            "base config",
+            (&self.base_hash, &self.base),
+            (&other.base_hash, &other.base),
+        ));
+        out.extend(data_difference(&self.data, &other.data));
         if out.is_empty() && (self.configs != other.configs || self.columns != other.columns) {
             out.push(format!(
                 "spec expands differently: {} configs {:?} vs {} configs {:?}",
@@ -380,6 +399,26 @@ fn short(v: Option<&Value>) -> String {
     } else {
         s
     }
+}
+
+/// `"{what} differs (hash vs hash): the differing fields"` when two hashed values' hashes
+/// differ (`(hash, value)` each).
+pub(crate) fn hashed_difference(
+    what: &str,
+    (hash_a, a): (&str, &Value),
+    (hash_b, b): (&str, &Value),
+) -> Option<String> {
+    (hash_a != hash_b).then(|| {
+        format!(
+            "{what} differs ({hash_a} vs {hash_b}): {}",
+            named_differences(a, b)
+        )
+    })
+}
+
+/// `"data differs: ..."` naming the floors that differ, when the data differ.
+pub(crate) fn data_difference(a: &DataIdentity, b: &DataIdentity) -> Option<String> {
+    (a != b).then(|| format!("data differs: {}", data_differences(a, b)))
 }
 
 /// The dotted paths where two JSON values differ, with both values, at most [`MAX_NAMED`].

@@ -64,7 +64,7 @@
 //! assert_eq!(points[0].params.len(), 2);
 //! ```
 
-mod identity;
+pub(crate) mod identity;
 mod results;
 mod run;
 mod spec;
