@@ -22,6 +22,7 @@
 //! ```text
 //! ```
 
+use crate::config::EvalConfig;
 use crate::scoring::WalkScore;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -153,6 +154,45 @@ impl EvalReport {
             floor_order,
             walks,
         }
+    }
+
+    /// The JSON document of `wipdr eval --json` (the schema in the [module docs](self)):
+    /// pooled and per-floor summaries, one entry per walk and scheme with its scored points,
+    /// the schemes and the config that produced the run. The Python package's
+    /// `wipdr.evaluate` returns this same document.
+    ///
+    /// ```
+    /// use wipdr_eval::{config::EvalConfig, report::EvalReport};
+    /// let json = EvalReport::default().to_json(&EvalConfig::default());
+    /// assert!(json["pooled"].is_object() && json["walks"].as_array().unwrap().is_empty());
+    /// assert_eq!(json["config"]["seed"], EvalConfig::default().seed);
+    /// ```
+    pub fn to_json(&self, config: &EvalConfig) -> serde_json::Value {
+        serde_json::json!({
+            "pooled": self.pooled,
+            "floors": self.floors,
+            "walks": self.walks.iter().map(|w| {
+                let s = ErrorStats::from_errors(&w.score.values());
+                serde_json::json!({
+                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
+                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
+                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
+                })
+            }).collect::<Vec<_>>(),
+            "schemes": self.schemes,
+            "config": config,
+        })
+    }
+
+    /// The schemes that scored no waypoint (empty test set, no matched query, a scoring
+    /// start beyond every waypoint): their figures are no result, and the CLI and the Python
+    /// package fail on them.
+    pub fn unscored_schemes(&self) -> Vec<&str> {
+        self.schemes
+            .iter()
+            .filter(|s| self.pooled.get(*s).is_none_or(|p| p.count == 0))
+            .map(String::as_str)
+            .collect()
     }
 
     /// A plain-text table: one block per floor and one pooled, a row per scheme.

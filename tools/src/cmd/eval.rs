@@ -110,20 +110,7 @@ pub fn evaluate_and_report(
     check_scored(&report)?;
     if let Some(path) = json {
         crate::plotting::ensure_parent(path)?;
-        let value = serde_json::json!({
-            "pooled": report.pooled,
-            "floors": report.floors,
-            "walks": report.walks.iter().map(|w| {
-                let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
-                serde_json::json!({
-                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
-                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
-                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
-                })
-            }).collect::<Vec<_>>(),
-            "schemes": report.schemes,
-            "config": cfg,
-        });
+        let value = report.to_json(cfg);
         std::fs::write(path, serde_json::to_string_pretty(&value)?)
             .with_context(|| format!("writing {}", path.display()))?;
         println!("\nwrote {}", path.display());
@@ -151,12 +138,7 @@ fn check_scored(report: &EvalReport) -> Result<()> {
     if non_finite > 0 {
         eprintln!("warning: {non_finite} non-finite waypoint errors left out of every figure");
     }
-    let empty: Vec<&str> = report
-        .schemes
-        .iter()
-        .filter(|s| report.pooled.get(*s).is_none_or(|p| p.count == 0))
-        .map(String::as_str)
-        .collect();
+    let empty = report.unscored_schemes();
     if !empty.is_empty() {
         anyhow::bail!(
             "no waypoint was scored for {} (empty test set, no matched query, or a scoring \
