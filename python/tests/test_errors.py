@@ -7,6 +7,13 @@ import wipdr
 from conftest import FIXTURE_FLOOR
 
 
+def small_map():
+    """Six survey points on a line, two APs (WKNN's default k is 5)."""
+    return wipdr.RadioMap.from_records(
+        [[float(i), 0.0] for i in range(6)], [[(1, -40.0 - 4 * i), (2, -70.0 + 4 * i)] for i in range(6)]
+    )
+
+
 def test_the_classes_are_oserror_and_valueerror():
     assert issubclass(wipdr.DataError, OSError) and issubclass(wipdr.DataError, wipdr.WipdrError)
     assert issubclass(wipdr.ConfigError, ValueError) and issubclass(wipdr.InputError, ValueError)
@@ -46,7 +53,7 @@ def test_offline_mode_is_refused_clearly():
 def test_an_unknown_scheme_is_a_value_error():
     with pytest.raises(ValueError, match="nosuch"):
         wipdr.evaluate([FIXTURE_FLOOR], ["nosuch"])
-    rm = wipdr.RadioMap.from_records([[0.0, 0.0]], [[(1, -50.0)]])
+    rm = small_map()
     with pytest.raises(ValueError, match="nosuch"):
         wipdr.Positioner(rm, "nosuch")
 
@@ -71,11 +78,12 @@ def test_bad_arrays_are_input_errors():
         wipdr.Walk("w", scans=[(0, [("zz:00", -50.0)])])
     with pytest.raises(wipdr.InputError, match="2 positions but 1 scans"):
         wipdr.RadioMap.from_records([[0.0, 0.0], [1.0, 0.0]], [[(1, -50.0)]])
+    with pytest.raises(wipdr.InputError, match="matcher.k: 5 neighbours asked of a radio map of 1"):
+        wipdr.RadioMap.from_records([[0.0, 0.0]], [[(1, -50.0)]])
 
 
 def test_bad_samples_are_input_errors():
-    rm = wipdr.RadioMap.from_records([[0.0, 0.0]], [[(1, -50.0)]])
-    p = wipdr.Positioner(rm, "ekf")
+    p = wipdr.Positioner(small_map(), "ekf")
     with pytest.raises(wipdr.InputError, match="finite"):
         p.push_accelerometer(0, float("inf"), 0.0, 9.8)
     with pytest.raises(wipdr.InputError, match="BSSID"):

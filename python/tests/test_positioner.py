@@ -28,11 +28,12 @@ def assert_tracks_equal(a, b):
     np.testing.assert_array_equal(a, b)  # NaN equals NaN here (floor, sd_m unknown)
 
 
-@pytest.mark.parametrize("scheme", ["wifi", "ekf", "pdr", "pf", "pmf"])
+@pytest.mark.parametrize("scheme", ["wifi", "ekf", "pdr", "pf", "apf", "pmf"])
 def test_a_positioner_fed_sample_by_sample_equals_locate(floor, scheme):
     walk, training = split(floor, 1)
+    training = wipdr.Floor(training, plan=floor.plan, name=floor.name)
     expected = wipdr.locate(walk, training, scheme)
-    radio_map = wipdr.RadioMap.from_walks(wipdr.Floor(training, plan=floor.plan, name=floor.name))
+    radio_map = wipdr.RadioMap.from_walks(training)
     start = (walk.waypoints[0, 0], walk.waypoints[0, 1], walk.waypoints[0, 2]) if scheme == "pdr" else None
     p = wipdr.Positioner(radio_map, scheme, floor_plan=floor.plan, stream_id=walk.id, start=start)
     n = push_all(p, walk)
@@ -91,5 +92,7 @@ def test_a_radio_map_from_records_positions_a_stream():
 
 
 def test_a_radio_map_from_records_keeps_floors():
-    rm = wipdr.RadioMap.from_records([[0.0, 0.0, 0], [5.0, 0.0, 1]], [[(1, -50.0)], [(1, -70.0)]])
-    assert rm.floors == [0, 1]
+    rm = wipdr.RadioMap.from_records(
+        [[float(i), 0.0, i % 2] for i in range(6)], [[(1, -50.0 - i)] for i in range(6)]
+    )
+    assert rm.floors == [0, 1, 0, 1, 0, 1]
