@@ -399,8 +399,7 @@ impl PyPositioner {
         y: f64,
         z: f64,
     ) -> PyResult<Option<PyEstimate>> {
-        let t = time_of(t_ms, "t_ms")?;
-        self.push(Sample::Accelerometer(vec3(t, x, y, z)?))
+        self.push_xyz(t_ms, [x, y, z], Sample::Accelerometer)
     }
 
     /// Feeds a gyroscope sample (rad/s); returns None (attitude only).
@@ -411,8 +410,7 @@ impl PyPositioner {
         y: f64,
         z: f64,
     ) -> PyResult<Option<PyEstimate>> {
-        let t = time_of(t_ms, "t_ms")?;
-        self.push(Sample::Gyroscope(vec3(t, x, y, z)?))
+        self.push_xyz(t_ms, [x, y, z], Sample::Gyroscope)
     }
 
     /// Feeds a magnetometer sample (µT); returns None (attitude only).
@@ -423,8 +421,7 @@ impl PyPositioner {
         y: f64,
         z: f64,
     ) -> PyResult<Option<PyEstimate>> {
-        let t = time_of(t_ms, "t_ms")?;
-        self.push(Sample::Magnetometer(vec3(t, x, y, z)?))
+        self.push_xyz(t_ms, [x, y, z], Sample::Magnetometer)
     }
 
     /// Feeds a rotation-vector sample (x, y, z of the attitude quaternion); returns None.
@@ -435,13 +432,13 @@ impl PyPositioner {
         y: f64,
         z: f64,
     ) -> PyResult<Option<PyEstimate>> {
-        let t = time_of(t_ms, "t_ms")?;
-        let v = vec3(t, x, y, z)?;
-        self.push(Sample::RotationVector(wipdr_core::RotationVectorSample {
-            t,
-            v: v.v,
-            accuracy: 3,
-        }))
+        self.push_xyz(t_ms, [x, y, z], |s| {
+            Sample::RotationVector(wipdr_core::RotationVectorSample {
+                t: s.t,
+                v: s.v,
+                accuracy: s.accuracy,
+            })
+        })
     }
 
     /// Feeds a barometer sample (hPa); returns None (it moves the floor estimate only).
@@ -505,24 +502,27 @@ impl PyPositioner {
     }
 }
 
-fn vec3(t: TimestampMs, x: f64, y: f64, z: f64) -> PyResult<wipdr_core::Vec3Sample> {
-    if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-        return Err(input_error(format!(
-            "sample at t_ms={t}: values must be finite, got ({x}, {y}, {z})"
-        )));
-    }
-    Ok(wipdr_core::Vec3Sample {
-        t,
-        v: [x, y, z],
-        accuracy: 3,
-    })
-}
-
 impl PyPositioner {
     fn stream(&self) -> PyResult<std::sync::MutexGuard<'_, Stream>> {
         self.inner.lock().map_err(|_| {
             input_error("Positioner: a push failed in another thread; build a new one")
         })
+    }
+
+    /// A three-axis sample (finite values) through [`Self::push`].
+    fn push_xyz(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        v: [f64; 3],
+        make: fn(wipdr_core::Vec3Sample) -> Sample,
+    ) -> PyResult<Option<PyEstimate>> {
+        let t = time_of(t_ms, "t_ms")?;
+        if v.iter().any(|c| !c.is_finite()) {
+            return Err(input_error(format!(
+                "sample at t_ms={t}: values must be finite, got {v:?}"
+            )));
+        }
+        self.push(make(wipdr_core::Vec3Sample { t, v, accuracy: 3 }))
     }
 
     /// One sample through the pipeline as `track_of` streams a recorded walk.

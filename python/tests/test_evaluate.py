@@ -69,5 +69,5 @@ def test_evaluate_equals_cli_json_on_a_real_floor(wipdr_bin, tmp_path):
     cli = cli_eval_json(wipdr_bin, tmp_path, [floor], ["wifi", "ekf"])
     py = wipdr.evaluate([wipdr.read_floor(floor)], ["wifi", "ekf"])
     assert_close(py["pooled"], cli["pooled"])
-    assert py["pooled"]["ekf"]["count"] > 1000
+    assert py["pooled"]["ekf"]["count"] > 500  # 626 waypoints of site1/F1 are scored
     assert_close(py, cli)
