@@ -4,8 +4,9 @@
 
 FLOOR_DIR defaults to the committed synthetic floor fixtures/sim/F1. Prints the pooled
 figures (the "pooled" part of `wipdr eval --json`); with matplotlib installed, writes a PNG
-with the error CDF of each scheme and the first walk's truth and tracks (located with the
-walks of the other protocol folds as training data, as `wipdr locate` does).
+with the error CDF of each scheme and the truth and tracks of the walk with the most
+waypoints (located with the walks of the other protocol folds as training data, as
+`wipdr locate` does).
 """
 
 import argparse
@@ -54,10 +55,12 @@ def main(argv=None):
     cdf.grid(True, alpha=0.3)
     cdf.legend()
 
+    # The walk with the most waypoints, located with the walks of the other folds.
     folds = floor.folds()
     walks = floor.walks
-    walk = walks[0]
-    training = wipdr.Floor([w for w, f in zip(walks, folds) if f != folds[0]], plan=floor.plan, name=floor.name)
+    i = max(range(len(walks)), key=lambda k: len(walks[k].waypoints))
+    walk = walks[i]
+    training = wipdr.Floor([w for w, f in zip(walks, folds) if f != folds[i]], plan=floor.plan, name=floor.name)
     for wall in floor.plan.walls:
         traj.plot(wall[[0, 2]], wall[[1, 3]], color="0.8", linewidth=0.5)
     traj.plot(walk.waypoints[:, 1], walk.waypoints[:, 2], "k.-", label="truth")
