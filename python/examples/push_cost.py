@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "python" / "tests"))
 
 import wipdr  # noqa: E402
-from conftest import push_items, stream_order  # noqa: E402
+from streams import push_items, stream_order  # noqa: E402
 
 
 def main(argv=None):
