@@ -114,29 +114,9 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
     })
 }
 
-/// Reads an ILC floor folder or a folder of IPIN logfiles through the parse cache
-/// ([`cache::read_floor`]), or an ILC site folder (floor folders inside) as one building
-/// ([`wipdr_io::site::read_site_dir`], each floor through the cache).
-pub fn read_any(
-    dir: &Path,
-    settings: &wipdr_io::cache::CacheSettings,
-    options: &ReadOptions,
-    on_walk: &(dyn Fn() + Sync),
-) -> Result<(FloorData, CacheOutcome), wipdr_io::IoError> {
-    if wipdr_io::site::is_site_dir(dir) {
-        let (data, outcomes) = wipdr_io::site::read_site_dir(dir, settings, options, on_walk)?;
-        // One outcome for the site: every floor from the cache is a hit; else the first
-        // floor that was not (read from source, for whatever reason).
-        let outcome = outcomes
-            .iter()
-            .copied()
-            .find(|o| *o != CacheOutcome::Hit)
-            .unwrap_or(CacheOutcome::Hit);
-        Ok((data, outcome))
-    } else {
-        cache::read_floor(dir, settings, options, on_walk)
-    }
-}
+/// Reads any floor folder ([`wipdr_io::any::read_any_dir`]: ILC floor, ILC site, folder of
+/// IPIN logfiles).
+pub use wipdr_io::any::read_any_dir as read_any;
 
 /// Reads one floor folder through the parse cache of this run ([`cache_settings`]), with a
 /// progress bar over the walks read from source; skipped walks are reported.

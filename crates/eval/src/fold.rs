@@ -3,6 +3,7 @@
 //! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
 
 use crate::folds::folds_of_walks;
+use crate::pipeline::FloorEnv;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
 use crate::pipeline::{EvalError, FloorInput, PreparedWalk, TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
 use std::sync::Arc;
@@ -12,9 +13,12 @@ use wipdr_fingerprint::MatcherModel;
 use wipdr_fingerprint::propagation::{extend_radio_map, fit_ap_models};
 use wipdr_fingerprint::radio_map::per_floor;
 use wipdr_fingerprint::walk_map::build_from_walks;
+use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::{TrailRaster, trails_of};
 use wipdr_pdr::PdrConfig;
-use wipdr_positioning::{Event, Frontend, PressureReference, Site, StreamIdentity, samples_of};
+use wipdr_positioning::{
+    Event, Frontend, Positioner, PressureReference, Site, StreamIdentity, samples_of, stream_seed,
+};
 
 /// The floor config of a floor's runs: `fixes_across_floors` resolved where it is auto
 /// (across floors where the floors share one WGS84 frame).
@@ -220,6 +224,36 @@ impl FoldModel {
             trails,
             test_walks,
         })
+    }
+
+    /// A whole [`Positioner`] for one stream on this model, as `wipdr locate` builds it: the
+    /// model's calibrated PDR, `scheme`, the config's wrappers, the seed mixed with
+    /// `stream_id` ([`stream_seed`]), the floor config of `floor` ([`floor_config`]), the
+    /// site of `floor`'s plan with the model's coverage and trails, and, with an `identity`,
+    /// the model's barometric references. `start` is a known start position (the `pdr`
+    /// baseline's true first waypoint).
+    pub fn positioner(
+        &self,
+        floor: &FloorInput,
+        scheme: SchemeConfig,
+        cfg: &EvalConfig,
+        stream_id: &str,
+        identity: Option<StreamIdentity>,
+        start: Option<Point2>,
+    ) -> Result<Positioner, EvalError> {
+        let mut positioner_cfg = cfg.positioner(scheme, self.pdr);
+        positioner_cfg.seed = stream_seed(cfg.seed, stream_id);
+        positioner_cfg.floor = floor_config(floor, cfg);
+        let site = self.site(&FloorEnv::new(floor).site);
+        let mut positioner = Positioner::new(&self.matcher, &site, &positioner_cfg, start)
+            .map_err(|source| EvalError::Positioning {
+                floor: floor.label.clone(),
+                source,
+            })?;
+        if let Some(id) = identity {
+            positioner.set_pressure_references(self.pressure_references.clone(), id);
+        }
+        Ok(positioner)
     }
 
     /// The site of a test walk: the floor's plan indexes (`plan_site`, shared per floor)

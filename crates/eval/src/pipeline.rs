@@ -24,9 +24,7 @@ use wipdr_fusion::trails::TrailRaster;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps};
 use wipdr_pdr::{Pdr, PdrConfig};
 use wipdr_positioning::smooth::smooth_fusion;
-use wipdr_positioning::{
-    FusionStage, PositionEstimate, Positioner, Site, samples_of, stream_seed, track_of,
-};
+use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
 
 /// Errors of an evaluation.
 #[derive(Debug, Error)]
@@ -392,11 +390,11 @@ pub fn run_scheme(
 }
 
 /// The track `wipdr locate` writes for walk `walk_id` of `floor`: the walk's raw samples
-/// streamed one by one through a full [`Positioner`] built from the walk's fold (radio map
+/// streamed one by one through a full [`Positioner`](wipdr_positioning::Positioner) built from the walk's fold (radio map
 /// and calibration from the other folds' walks, as the protocol does). One row per estimate
 /// (after each step or fix; for `pdr`, first the true start). Its score at the waypoints
 /// equals what [`evaluate`] reports for that walk and scheme. With `cfg.offline` the
-/// track is [`Positioner::smooth`] after the whole walk (what `eval --offline` scores).
+/// track is [`Positioner::smooth`](wipdr_positioning::Positioner::smooth) after the whole walk (what `eval --offline` scores).
 pub fn locate(
     floor: &FloorInput,
     walk_id: &str,
@@ -439,28 +437,40 @@ pub fn locate_with(
         }
         Training::AllOthers => FoldModel::build_all_but(floor, index, cfg)?,
     };
-    let walk = &walks[index];
+    locate_on_model(floor, &model, index, scheme, cfg)
+}
+
+/// The track of walk `index` of `floor` streamed through a whole [`Positioner`](wipdr_positioning::Positioner) built on
+/// `model` (what [`locate_with`] does once it has learned the model; the Python package's
+/// `wipdr.locate` learns its model from the walks it is given). For `pdr`, the track starts
+/// at the walk's true first waypoint.
+pub fn locate_on_model(
+    floor: &FloorInput,
+    model: &FoldModel,
+    index: usize,
+    scheme: &str,
+    cfg: &EvalConfig,
+) -> Result<Vec<PositionEstimate>, EvalError> {
+    let walk = floor
+        .data
+        .walks
+        .get(index)
+        .ok_or_else(|| EvalError::UnknownWalk {
+            floor: floor.label.clone(),
+            walk: format!("#{index}"),
+        })?;
     let scheme_cfg = cfg.scheme(scheme)?;
     let start = (scheme_cfg.name() == "pdr")
         .then(|| walk.waypoints.first().map(|w| (w.t, w.position)))
         .flatten();
-    let mut positioner_cfg = cfg.positioner(scheme_cfg, model.pdr);
-    positioner_cfg.seed = stream_seed(cfg.seed, walk_id);
-    positioner_cfg.floor = crate::fold::floor_config(floor, cfg);
-    let site = model.site(&FloorEnv::new(floor).site);
-    let mut positioner = Positioner::new(
-        &model.matcher,
-        &site,
-        &positioner_cfg,
+    let mut positioner = model.positioner(
+        floor,
+        scheme_cfg,
+        cfg,
+        &walk.meta.id,
+        crate::fold::identity_of(walk),
         start.map(|(_, p)| p),
-    )
-    .map_err(|source| EvalError::Positioning {
-        floor: floor.label.clone(),
-        source,
-    })?;
-    if let Some(id) = crate::fold::identity_of(walk) {
-        positioner.set_pressure_references(model.pressure_references.clone(), id);
-    }
+    )?;
     let track = track_of(&mut positioner, samples_of(walk), start);
     if !cfg.offline || start.is_some() {
         return Ok(track);

@@ -28,6 +28,7 @@
 //! ```text
 //! ```
 
+use crate::config::EvalConfig;
 use crate::scoring::WalkScore;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -199,6 +200,32 @@ impl EvalReport {
             },
             "config": config,
         })
+    }
+
+    /// The JSON document of `wipdr eval --json` for `config` ([`Self::json_document`] of
+    /// the serialised config). The Python package's `wipdr.evaluate` returns this document.
+    ///
+    /// ```
+    /// use wipdr_eval::{config::EvalConfig, report::EvalReport};
+    /// let json = EvalReport::default().to_json(&EvalConfig::default());
+    /// assert!(json["pooled"].is_object() && json["walks"].as_array().unwrap().is_empty());
+    /// assert_eq!(json["config"]["seed"], EvalConfig::default().seed);
+    /// assert_eq!(json["mode"], "causal");
+    /// ```
+    pub fn to_json(&self, config: &EvalConfig) -> serde_json::Value {
+        let value = serde_json::to_value(config).unwrap_or(serde_json::Value::Null);
+        self.json_document(&value)
+    }
+
+    /// The schemes that scored no waypoint (empty test set, no matched query, a scoring
+    /// start beyond every waypoint): their figures are no result, and the CLI and the Python
+    /// package fail on them.
+    pub fn unscored_schemes(&self) -> Vec<&str> {
+        self.schemes
+            .iter()
+            .filter(|s| self.pooled.get(*s).is_none_or(|p| p.count == 0))
+            .map(String::as_str)
+            .collect()
     }
 
     /// A plain-text table: one block per floor and one pooled, a row per scheme.

@@ -70,6 +70,7 @@
 //! assert_eq!(parsed.report.skipped_of(trace::SkipKind::UnknownType), 1);
 //! ```
 
+pub mod any;
 pub mod cache;
 pub mod error;
 pub mod fingerprint_csv;

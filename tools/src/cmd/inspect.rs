@@ -54,23 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn inspect_walk(path: &Path, options: &ReadOptions) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let parsed = if wipdr_io::logfile::is_logfile(path) {
-        let log = wipdr_io::logfile::read_logfile(path, &options.limits)?;
-        // One logfile alone: its own ground truth places the frame.
-        let frame = wipdr_io::logfile_folder::frame_of(
-            log.ground_truth.iter().map(|g| (g.lat_deg, g.lon_deg)),
-        )
-        .map(|(f, _, _)| f);
-        match frame {
-            Some(frame) => log.into_walk(&frame),
-            None => ParsedWalk {
-                walk: log.walk,
-                report: log.report,
-            },
-        }
-    } else {
-        trace::read_walk_with(path, &options.limits)?
-    };
+    let parsed = wipdr_io::any::read_walk_file(path, &options.limits)?;
     let elapsed = t0.elapsed().as_secs_f64();
     let w = &parsed.walk;
     println!(

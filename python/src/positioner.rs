@@ -1,0 +1,544 @@
+//! `wipdr.RadioMap`, `wipdr.Positioner` and `wipdr.Estimate`: the online pipeline from
+//! Python, one sample at a time.
+
+use crate::convert::{config_of, entries_of, f64_rows, scan_of, time_of, to_array};
+use crate::errors::{eval_error, input_error};
+use crate::floor::{PyFloor, PyFloorPlan};
+use crate::walk::PyWalk;
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use std::sync::{Arc, Mutex};
+use wipdr_core::{Bssid, Floor as CoreFloor, Point2, TimestampMs};
+use wipdr_eval::fold::FoldModel;
+use wipdr_eval::pipeline::{EvalConfig, FloorInput};
+use wipdr_fingerprint::RadioMap;
+use wipdr_fingerprint::radio_map::ReferencePoint;
+use wipdr_positioning::{PositionEstimate, Sample, StreamIdentity};
+
+/// What a radio map was learned from and with.
+#[derive(Debug, Clone)]
+enum Source {
+    /// Walks (`from_walks`): the model's PDR is calibrated on them when the config said so.
+    Walks { calibrated: bool },
+    /// Survey records (`from_records`): no PDR learned.
+    Records,
+}
+
+/// A radio map and what else the evaluation learns from training walks: where the map has
+/// fingerprints (coverage), where the walks went (trails, for ``pmf``), the PDR calibrated
+/// on them and their barometer on known floors.
+#[pyclass(module = "wipdr", name = "RadioMap", frozen)]
+#[derive(Debug)]
+pub struct PyRadioMap {
+    model: FoldModel,
+    map: Arc<RadioMap>,
+    /// The place the walks were recorded in (plan, WGS84 frame; no walks kept).
+    place: FloorInput,
+    source: Source,
+}
+
+/// `walks` (a list of `Walk` or a `Floor`) as a floor of those walks, with its plan and frame.
+fn floor_of(walks: &Bound<'_, PyAny>, floor_plan: Option<&PyFloorPlan>) -> PyResult<FloorInput> {
+    if let Ok(floor) = walks.extract::<PyFloor>() {
+        let mut input = floor.input();
+        if let Some(plan) = floor_plan {
+            let mut f = (*input.data).clone();
+            f.plan = plan.inner.clone();
+            input.data = Arc::new(f);
+        }
+        return Ok(input);
+    }
+    let list: Vec<PyWalk> = walks
+        .extract()
+        .map_err(|_| input_error("walks: expected a list of Walk objects or a Floor"))?;
+    let walks: Vec<wipdr_core::Walk> = list.into_iter().map(|w| w.inner).collect();
+    let plan = match floor_plan {
+        Some(p) => p.inner.clone(),
+        None => crate::floor::plan_around_walks(walks.iter())?,
+    };
+    Ok(FloorInput::new(
+        "walks",
+        CoreFloor::new("walks", plan, walks),
+    ))
+}
+
+/// The floor's plan and frame without its walks.
+fn place_of(floor: &FloorInput) -> FloorInput {
+    let f = &floor.data;
+    let mut place = CoreFloor::new(f.name.clone(), f.plan.clone(), Vec::new());
+    place.geo_frame = f.geo_frame;
+    FloorInput::new(floor.label.clone(), place)
+}
+
+#[pymethods]
+impl PyRadioMap {
+    /// Learns from training ``walks`` (a list of :class:`Walk` or a :class:`Floor`) what
+    /// one fold of the evaluation learns from its training walks: the radio map (each scan
+    /// at the position interpolated between the waypoints around it; ``[radio_map]`` of
+    /// ``config``), its coverage, the walks' trails, the PDR calibration
+    /// (``calibrate_pdr``) and the barometric references. ``config`` as in
+    /// :func:`evaluate`; ``floor_plan`` replaces the floor's plan (for the path-loss
+    /// extension's walkable test).
+    #[staticmethod]
+    #[pyo3(signature = (walks, config=None, floor_plan=None))]
+    fn from_walks(
+        py: Python<'_>,
+        walks: &Bound<'_, PyAny>,
+        config: Option<&Bound<'_, PyAny>>,
+        floor_plan: Option<PyFloorPlan>,
+    ) -> PyResult<Self> {
+        let cfg = config_of(config)?;
+        let floor = floor_of(walks, floor_plan.as_ref())?;
+        let n = floor.data.walks.len();
+        if n == 0 {
+            return Err(input_error("RadioMap.from_walks: no walks"));
+        }
+        let model = py
+            .detach(|| {
+                FoldModel::build_on(
+                    &floor,
+                    usize::MAX,
+                    &(0..n).collect::<Vec<_>>(),
+                    Vec::new(),
+                    &cfg,
+                )
+            })
+            .map_err(|e| eval_error(&e))?;
+        Ok(Self {
+            map: Arc::new(model.matcher.map().clone()),
+            model,
+            place: place_of(&floor),
+            source: Source::Walks {
+                calibrated: cfg.calibrate_pdr,
+            },
+        })
+    }
+
+    /// A radio map from survey records: ``positions`` ``(n, 2)`` ``x, y`` or ``(n, 3)``
+    /// ``x, y, floor``, and for each position the list of ``(bssid, rssi_dbm)`` heard there.
+    /// ``config``'s ``[radio_map.radio]`` sets the value of APs not heard.
+    #[staticmethod]
+    #[pyo3(signature = (positions, scans, config=None))]
+    fn from_records(
+        positions: &Bound<'_, PyAny>,
+        scans: Vec<Bound<'_, PyAny>>,
+        config: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let cfg = config_of(config)?;
+        let cols = positions
+            .getattr("shape")
+            .ok()
+            .and_then(|s| s.get_item(1).ok())
+            .and_then(|c| c.extract::<usize>().ok())
+            .or_else(|| positions.get_item(0).ok().and_then(|r| r.len().ok()))
+            .unwrap_or(2);
+        let a = f64_rows(positions, if cols == 3 { 3 } else { 2 }, "positions")?;
+        if a.nrows() != scans.len() {
+            return Err(input_error(format!(
+                "RadioMap.from_records: {} positions but {} scans",
+                a.nrows(),
+                scans.len()
+            )));
+        }
+        let mut records: Vec<(ReferencePoint, Vec<(Bssid, f64)>)> = Vec::with_capacity(a.nrows());
+        for (i, (row, scan)) in a.rows().into_iter().zip(&scans).enumerate() {
+            if row.iter().any(|v| !v.is_finite()) {
+                return Err(input_error(format!("positions[{i}]: must be finite")));
+            }
+            let mut point = ReferencePoint::from(Point2::new(row[0], row[1]));
+            if row.len() == 3 {
+                let f = row[2];
+                if f.fract() != 0.0 || f.abs() > 1000.0 {
+                    return Err(input_error(format!(
+                        "positions[{i}]: floor must be a whole number within +-1000, got {f}"
+                    )));
+                }
+                // Whole and small: the cast is exact.
+                #[allow(clippy::cast_possible_truncation)]
+                {
+                    point.floor = Some(f as i32);
+                }
+            }
+            let heard = entries_of(scan, &format!("scans[{i}]"))?
+                .into_iter()
+                .map(|e| (e.bssid, e.rssi_dbm))
+                .collect();
+            records.push((point, heard));
+        }
+        let map = RadioMap::from_records(records, cfg.radio_map.radio)
+            .map_err(|e| input_error(format!("RadioMap.from_records: {e}")))?;
+        let coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
+        let plan = crate::floor::plan_around(map.points().iter().map(|p| p.position))?;
+        let map = Arc::new(map);
+        let matcher = cfg
+            .matcher
+            .build(map.clone())
+            .map_err(|e| input_error(format!("RadioMap.from_records: matcher: {e}")))?;
+        Ok(Self {
+            model: FoldModel {
+                fold: usize::MAX,
+                matcher,
+                pdr: cfg.pdr,
+                coverage,
+                trails: None,
+                test_walks: Vec::new(),
+                pressure_references: Arc::new(Vec::new()),
+            },
+            map,
+            place: FloorInput::new("records", CoreFloor::new("records", plan, Vec::new())),
+            source: Source::Records,
+        })
+    }
+
+    /// Number of reference points.
+    fn __len__(&self) -> usize {
+        self.map.len()
+    }
+
+    /// Number of access points.
+    #[getter]
+    fn n_aps(&self) -> usize {
+        self.map.n_aps()
+    }
+
+    /// Reference point positions, ``(n, 2)`` float64 ``x, y``.
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let p = self.map.points();
+        to_array(py, 2, p.iter().map(|p| vec![p.position.x, p.position.y]))
+    }
+
+    /// Each reference point's floor (None where unknown).
+    #[getter]
+    fn floors(&self) -> Vec<Option<i32>> {
+        self.map.points().iter().map(|p| p.floor).collect()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "RadioMap({} points, {} APs)",
+            self.map.len(),
+            self.map.n_aps()
+        )
+    }
+}
+
+/// One estimate of a :class:`Positioner`: time (ms), position (metres), floor (None where
+/// unknown), horizontal standard deviation and covariance (None where the scheme has none).
+#[pyclass(module = "wipdr", name = "Estimate", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub struct PyEstimate {
+    /// Time of the sample that gave the estimate, ms.
+    pub t_ms: TimestampMs,
+    /// East / x, metres.
+    pub x: f64,
+    /// North / y, metres.
+    pub y: f64,
+    /// Floor level, where known.
+    pub floor: Option<i32>,
+    /// Horizontal standard deviation, metres (``sqrt(trace(P) / 2)``).
+    pub sd_m: Option<f64>,
+    /// Horizontal covariance ``((xx, xy), (yx, yy))``, m².
+    pub covariance: Option<((f64, f64), (f64, f64))>,
+}
+
+impl PyEstimate {
+    fn of(e: &PositionEstimate) -> Self {
+        Self {
+            t_ms: e.t,
+            x: e.position.x,
+            y: e.position.y,
+            floor: e.floor,
+            sd_m: e.sd_m(),
+            covariance: e
+                .covariance
+                .map(|p| ((p[(0, 0)], p[(0, 1)]), (p[(1, 0)], p[(1, 1)]))),
+        }
+    }
+}
+
+#[pymethods]
+impl PyEstimate {
+    fn __repr__(&self) -> String {
+        format!(
+            "Estimate(t_ms={}, x={:.3}, y={:.3}, floor={:?}, sd_m={:?})",
+            self.t_ms, self.x, self.y, self.floor, self.sd_m
+        )
+    }
+}
+
+/// Track rows: `t_ms, x, y, floor, sd_m` (NaN where the floor or the deviation is unknown,
+/// as the CSV of `wipdr locate` leaves the field empty).
+pub fn track_array<'py>(py: Python<'py>, track: &[PositionEstimate]) -> Bound<'py, PyArray2<f64>> {
+    to_array(
+        py,
+        5,
+        track.iter().map(|e| {
+            vec![
+                e.t as f64,
+                e.position.x,
+                e.position.y,
+                e.floor.map_or(f64::NAN, f64::from),
+                e.sd_m().unwrap_or(f64::NAN),
+            ]
+        }),
+    )
+}
+
+/// The online positioning pipeline for one stream: feed raw samples in time order, get the
+/// current estimate. The same pipeline ``wipdr locate`` and ``wipdr eval`` run.
+#[pyclass(module = "wipdr", name = "Positioner")]
+#[derive(Debug)]
+pub struct PyPositioner {
+    /// The stream (a mutex: Python objects may be shared between threads).
+    inner: Mutex<Stream>,
+}
+
+/// A positioner and the track it returned.
+#[derive(Debug)]
+struct Stream {
+    positioner: wipdr_positioning::Positioner,
+    start: Option<(TimestampMs, Point2)>,
+    track: Vec<PositionEstimate>,
+}
+
+#[pymethods]
+impl PyPositioner {
+    /// A positioner on ``radio_map`` running ``scheme`` (``wifi``, ``pdr``, ``ekf``,
+    /// ``aekf``, ``akf``, ``rkf``, ``arkf``, ``aws``, ``tcpf``, ``pf``, ``apf``, ``rof``,
+    /// ``pmf`` or a ``[schemes.LABEL]`` of ``config``). ``config`` as in :func:`evaluate`
+    /// (its ``matcher``, ``query``, ``pdr``, scheme, ``map_matching``, ``static_start``,
+    /// ``floor`` and ``seed``); the PDR calibrated by :meth:`RadioMap.from_walks` is used
+    /// when it calibrated one. ``floor_plan`` (default: the training floor's plan) gives
+    /// walls and walkable space. ``stream_id`` is mixed into the seed as the evaluation
+    /// does with the walk id; ``start`` = ``(t_ms, x, y)`` a known start (samples before
+    /// ``t_ms`` only warm the PDR up); ``identity`` = ``(phone_model, start_unix_ms)`` lets
+    /// the floor estimate use the training walks' barometer.
+    #[new]
+    #[pyo3(signature = (radio_map, scheme="ekf", config=None, floor_plan=None, *,
+        stream_id="", start=None, identity=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        radio_map: &PyRadioMap,
+        scheme: &str,
+        config: Option<&Bound<'_, PyAny>>,
+        floor_plan: Option<PyFloorPlan>,
+        stream_id: &str,
+        start: Option<(Bound<'_, PyAny>, f64, f64)>,
+        identity: Option<(String, Bound<'_, PyAny>)>,
+    ) -> PyResult<Self> {
+        let cfg: EvalConfig = config_of(config)?;
+        let scheme_cfg = cfg.scheme(scheme).map_err(|e| eval_error(&e))?;
+        let mut model = radio_map.model.clone();
+        model.matcher = cfg
+            .matcher
+            .build(radio_map.map.clone())
+            .map_err(|e| input_error(format!("Positioner: matcher: {e}")))?;
+        let calibrated = matches!(radio_map.source, Source::Walks { calibrated: true });
+        if !calibrated {
+            model.pdr = cfg.pdr;
+        }
+        let place = match floor_plan {
+            Some(plan) => {
+                let mut f = (*radio_map.place.data).clone();
+                f.plan = plan.inner;
+                FloorInput::new(radio_map.place.label.clone(), f)
+            }
+            None => radio_map.place.clone(),
+        };
+        let start = match start {
+            Some((t, x, y)) => {
+                let t = time_of(&t, "start")?;
+                if !(x.is_finite() && y.is_finite()) {
+                    return Err(input_error("start: x and y must be finite"));
+                }
+                Some((t, Point2::new(x, y)))
+            }
+            None => None,
+        };
+        let identity = match identity {
+            Some((model, t)) => Some(StreamIdentity {
+                model,
+                start_unix_ms: time_of(&t, "identity start_unix_ms")?,
+            }),
+            None => None,
+        };
+        let positioner = py
+            .detach(|| {
+                model.positioner(
+                    &place,
+                    scheme_cfg,
+                    &cfg,
+                    stream_id,
+                    identity,
+                    start.map(|(_, p)| p),
+                )
+            })
+            .map_err(|e| eval_error(&e))?;
+        let mut track = Vec::new();
+        if let (Some((t, _)), Some(mut e)) = (start, positioner.estimate()) {
+            e.t = t;
+            track.push(e);
+        }
+        Ok(Self {
+            inner: Mutex::new(Stream {
+                positioner,
+                start,
+                track,
+            }),
+        })
+    }
+
+    /// Feeds an accelerometer sample (m/s², device frame). Returns the new estimate when
+    /// the sample ended a step, else None.
+    fn push_accelerometer(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        x: f64,
+        y: f64,
+        z: f64,
+    ) -> PyResult<Option<PyEstimate>> {
+        self.push_xyz(t_ms, [x, y, z], Sample::Accelerometer)
+    }
+
+    /// Feeds a gyroscope sample (rad/s); returns None (attitude only).
+    fn push_gyroscope(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        x: f64,
+        y: f64,
+        z: f64,
+    ) -> PyResult<Option<PyEstimate>> {
+        self.push_xyz(t_ms, [x, y, z], Sample::Gyroscope)
+    }
+
+    /// Feeds a magnetometer sample (µT); returns None (attitude only).
+    fn push_magnetometer(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        x: f64,
+        y: f64,
+        z: f64,
+    ) -> PyResult<Option<PyEstimate>> {
+        self.push_xyz(t_ms, [x, y, z], Sample::Magnetometer)
+    }
+
+    /// Feeds a rotation-vector sample (x, y, z of the attitude quaternion); returns None.
+    fn push_rotation_vector(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        x: f64,
+        y: f64,
+        z: f64,
+    ) -> PyResult<Option<PyEstimate>> {
+        self.push_xyz(t_ms, [x, y, z], |s| {
+            Sample::RotationVector(wipdr_core::RotationVectorSample {
+                t: s.t,
+                v: s.v,
+                accuracy: s.accuracy,
+            })
+        })
+    }
+
+    /// Feeds a barometer sample (hPa); returns None (it moves the floor estimate only).
+    fn push_pressure(&self, t_ms: &Bound<'_, PyAny>, hpa: f64) -> PyResult<Option<PyEstimate>> {
+        let t = time_of(t_ms, "t_ms")?;
+        if !hpa.is_finite() {
+            return Err(input_error(format!(
+                "push_pressure: hpa must be finite, got {hpa}"
+            )));
+        }
+        self.push(Sample::Pressure(wipdr_positioning::PressureSample {
+            t,
+            hpa,
+        }))
+    }
+
+    /// Feeds a Wi-Fi scan: ``entries`` ``[(bssid, rssi_dbm), ...]`` or ``[(bssid,
+    /// rssi_dbm, last_seen_ms), ...]`` (BSSID as ``"aa:bb:cc:dd:ee:ff"`` or an int).
+    /// Returns the new estimate when the scan was matched, else None.
+    fn push_scan(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        entries: &Bound<'_, PyAny>,
+    ) -> PyResult<Option<PyEstimate>> {
+        let t = time_of(t_ms, "t_ms")?;
+        let entries = entries_of(entries, "push_scan entries")?;
+        self.push(Sample::Wifi(scan_of(t, entries)))
+    }
+
+    /// The current estimate (None until the scheme has one).
+    fn estimate(&self) -> PyResult<Option<PyEstimate>> {
+        Ok(self
+            .stream()?
+            .positioner
+            .estimate()
+            .map(|e| PyEstimate::of(&e)))
+    }
+
+    /// Every estimate returned so far (and, with a ``start``, one at its time first), as a
+    /// ``(n, 5)`` float64 array ``t_ms, x, y, floor, sd_m`` (NaN where unknown): the rows
+    /// ``wipdr locate`` writes.
+    fn track<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(track_array(py, &self.stream()?.track))
+    }
+
+    /// What the stream received: samples, out_of_order, steps, scans, unmatched_scans,
+    /// pressure, off_floor_fixes.
+    fn counts(&self) -> PyResult<std::collections::BTreeMap<&'static str, u64>> {
+        let c = self.stream()?.positioner.counts();
+        Ok([
+            ("samples", c.samples),
+            ("out_of_order", c.out_of_order),
+            ("steps", c.steps),
+            ("scans", c.scans),
+            ("unmatched_scans", c.unmatched_scans),
+            ("pressure", c.pressure),
+            ("off_floor_fixes", c.off_floor_fixes),
+        ]
+        .into_iter()
+        .collect())
+    }
+}
+
+impl PyPositioner {
+    fn stream(&self) -> PyResult<std::sync::MutexGuard<'_, Stream>> {
+        self.inner.lock().map_err(|_| {
+            input_error("Positioner: a push failed in another thread; build a new one")
+        })
+    }
+
+    /// A three-axis sample (finite values) through [`Self::push`].
+    fn push_xyz(
+        &self,
+        t_ms: &Bound<'_, PyAny>,
+        v: [f64; 3],
+        make: fn(wipdr_core::Vec3Sample) -> Sample,
+    ) -> PyResult<Option<PyEstimate>> {
+        let t = time_of(t_ms, "t_ms")?;
+        if v.iter().any(|c| !c.is_finite()) {
+            return Err(input_error(format!(
+                "sample at t_ms={t}: values must be finite, got {v:?}"
+            )));
+        }
+        self.push(make(wipdr_core::Vec3Sample { t, v, accuracy: 3 }))
+    }
+
+    /// One sample through the pipeline as `track_of` streams a recorded walk.
+    fn push(&self, sample: Sample) -> PyResult<Option<PyEstimate>> {
+        let mut s = self.stream()?;
+        let t = sample.t();
+        if s.start.is_some_and(|(t0, _)| t < t0) {
+            s.positioner.warm_up(&sample);
+            return Ok(None);
+        }
+        let Some(mut e) = s.positioner.push(&sample) else {
+            return Ok(None);
+        };
+        e.t = t;
+        let out = PyEstimate::of(&e);
+        s.track.push(e);
+        Ok(Some(out))
+    }
+}
