@@ -1,6 +1,6 @@
 //! `wipdr eval`: the protocol of `docs/evaluation.md` on recorded walks, for any schemes.
 
-use crate::{data, eval_plots, progress};
+use crate::{data, eval_plots, progress, report as report_page};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
@@ -25,6 +25,14 @@ pub struct Args {
     /// Write the figures (pooled, per floor, per walk) as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Put the drawing data (downsampled tracks, truth, Wi-Fi fixes, floor plans) into the
+    /// `--json` file too, so that `wipdr report` can draw the walks from it.
+    #[arg(long, requires = "json")]
+    pub json_tracks: bool,
+    /// Write the report page: one self-contained HTML file (tables, error CDF, every walk
+    /// drawn on its floor; `docs/guide.md`, "The report page").
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
     /// Write plots into this folder: trajectories, error CDF, error against time.
     #[arg(long)]
     pub plots: Option<PathBuf>,
@@ -53,16 +61,32 @@ pub fn load_config(path: Option<&Path>) -> Result<EvalConfig> {
     }
 }
 
+/// What an evaluation writes besides the printed table.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Outputs<'a> {
+    /// The results JSON.
+    pub json: Option<&'a Path>,
+    /// Put the drawing data into the results JSON too.
+    pub json_tracks: bool,
+    /// The report page.
+    pub report: Option<&'a Path>,
+    /// The folder of PNG plots.
+    pub plots: Option<&'a Path>,
+    /// Walks per floor with trajectory plots.
+    pub plot_walks: usize,
+    /// Plot the worst walks of the last scheme.
+    pub plot_worst: bool,
+}
+
 /// Evaluates and prints; shared with `wipdr demo`.
 pub fn evaluate_and_report(
     floors: &[FloorInput],
     cfg: &EvalConfig,
     schemes: &[String],
-    json: Option<&Path>,
-    plots: Option<&Path>,
-    plot_walks: usize,
-    plot_worst: bool,
+    out: &Outputs<'_>,
 ) -> Result<EvalReport> {
+    let (json, plots, plot_walks, plot_worst) =
+        (out.json, out.plots, out.plot_walks, out.plot_worst);
     for s in schemes {
         cfg.scheme(s)?;
     }
@@ -74,7 +98,21 @@ pub fn evaluate_and_report(
         p
     };
     let pb = progress::bar((prepared.len() * schemes.len()) as u64, "running");
-    let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| pb.inc(1))?;
+    let drawing = out.json_tracks || out.report.is_some();
+    let store =
+        report_page::TrackStore::new(if drawing { prepared.len() } else { 0 }, schemes.len());
+    let report = pipeline::run_prepared_observed(
+        floors,
+        &prepared,
+        cfg,
+        schemes,
+        &|| pb.inc(1),
+        &|w, s, track| {
+            if drawing {
+                store.keep(&prepared, w, s, track);
+            }
+        },
+    )?;
     pb.finish_and_clear();
     let unmatched: usize = prepared.iter().map(|p| p.unmatched_scans).sum();
     let off_floor: usize = prepared.iter().map(|p| p.off_floor_fixes).sum();
@@ -108,29 +146,24 @@ pub fn evaluate_and_report(
     );
     print!("{}", report.table());
     check_scored(&report)?;
+    let mut value = results_json(&report, cfg);
+    if drawing {
+        let started = std::time::Instant::now();
+        report_page::add_drawing(&mut value, floors, &prepared, schemes, store)?;
+        tracing::info!(seconds = started.elapsed().as_secs_f64(), "drawing data");
+    }
     if let Some(path) = json {
         crate::plotting::ensure_parent(path)?;
-        let value = serde_json::json!({
-            "pooled": report.pooled,
-            "floors": report.floors,
-            "walks": report.walks.iter().map(|w| {
-                let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
-                let mut walk = serde_json::json!({
-                    "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
-                    "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
-                    "p95": s.p95, "max": s.max, "errors": w.score.errors,
-                });
-                if !w.score.sd_m.is_empty() {
-                    walk["sd_m"] = serde_json::json!(w.score.sd_m);
-                }
-                walk
-            }).collect::<Vec<_>>(),
-            "schemes": report.schemes,
-            "config": cfg,
-        });
-        std::fs::write(path, serde_json::to_string_pretty(&value)?)
-            .with_context(|| format!("writing {}", path.display()))?;
+        let written = if out.json_tracks || !drawing {
+            serde_json::to_string_pretty(&value)?
+        } else {
+            serde_json::to_string_pretty(&without_drawing(&value))?
+        };
+        std::fs::write(path, written).with_context(|| format!("writing {}", path.display()))?;
         println!("\nwrote {}", path.display());
+    }
+    if let Some(path) = out.report {
+        report_page::write_page(&value, &path.display().to_string(), path)?;
     }
     if let Some(dir) = plots {
         let options = eval_plots::PlotOptions {
@@ -142,6 +175,49 @@ pub fn evaluate_and_report(
         println!("wrote {} plots into {}", files, dir.display());
     }
     Ok(report)
+}
+
+/// The results JSON of a run (schema: `wipdr_eval::report`'s module docs), without the
+/// drawing data.
+pub fn results_json(report: &EvalReport, cfg: &EvalConfig) -> serde_json::Value {
+    serde_json::json!({
+        "pooled": report.pooled,
+        "floors": report.floors,
+        "walks": report.walks.iter().map(|w| {
+            let s = wipdr_core::stats::ErrorStats::from_errors(&w.score.values());
+            let mut walk = serde_json::json!({
+                "floor": w.floor, "walk": w.walk, "fold": w.fold, "scheme": w.scheme,
+                "count": s.count, "skipped": w.score.skipped, "mean": s.mean,
+                "p95": s.p95, "max": s.max, "errors": w.score.errors,
+            });
+            if !w.score.sd_m.is_empty() {
+                walk["sd_m"] = serde_json::json!(w.score.sd_m);
+            }
+            walk
+        }).collect::<Vec<_>>(),
+        "schemes": report.schemes,
+        "config": cfg,
+    })
+}
+
+/// `value` without the drawing data of [`report_page::add_drawing`] (the `--json` of a run
+/// with `--report` but without `--json-tracks`).
+fn without_drawing(value: &serde_json::Value) -> serde_json::Value {
+    let mut v = value.clone();
+    if let Some(o) = v.as_object_mut() {
+        for k in report_page::DRAWING_FIELDS {
+            o.remove(*k);
+        }
+    }
+    if let Some(walks) = v.get_mut("walks").and_then(serde_json::Value::as_array_mut) {
+        for w in walks
+            .iter_mut()
+            .filter_map(serde_json::Value::as_object_mut)
+        {
+            w.remove("track");
+        }
+    }
+    v
 }
 
 /// Fails when a scheme scored no waypoint (its 0.00 m would read as a result), and reports
@@ -175,15 +251,15 @@ fn check_scored(report: &EvalReport) -> Result<()> {
 pub fn run(args: Args) -> Result<()> {
     let cfg = load_config(args.config.as_deref())?;
     let floors = data::load_floors(&args.data)?;
-    let report = evaluate_and_report(
-        &floors,
-        &cfg,
-        &args.schemes,
-        args.json.as_deref(),
-        args.plots.as_deref(),
-        args.plot_walks,
-        args.plot_worst,
-    )?;
+    let outputs = Outputs {
+        json: args.json.as_deref(),
+        json_tracks: args.json_tracks,
+        report: args.report.as_deref(),
+        plots: args.plots.as_deref(),
+        plot_walks: args.plot_walks,
+        plot_worst: args.plot_worst,
+    };
+    let report = evaluate_and_report(&floors, &cfg, &args.schemes, &outputs)?;
     if let Some(last) = args.by_index {
         println!(
             "\npooled error by waypoint index within the walk (mean m / share of the scheme's summed error)"
