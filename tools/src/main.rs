@@ -13,6 +13,7 @@ mod data;
 mod eval_plots;
 mod plotting;
 mod progress;
+mod report;
 
 /// Indoor positioning by Wi-Fi fingerprinting fused with pedestrian dead reckoning.
 #[derive(Debug, Parser)]
@@ -54,6 +55,8 @@ enum Command {
     PdrEval(cmd::pdr_eval::Args),
     /// Evaluate fusion schemes on recorded walks under the protocol folds.
     Eval(cmd::eval::Args),
+    /// The report page of a saved run: `wipdr report RESULTS.json --out FILE.html`.
+    Report(cmd::report::Args),
     /// Position one walk by streaming its samples through the online Positioner.
     Locate(cmd::locate::Args),
     /// Run the evaluation on the embedded synthetic fixtures, in seconds.
@@ -96,6 +99,7 @@ fn main() -> std::process::ExitCode {
         Command::PdrFit(a) => cmd::pdr_fit::run(a),
         Command::PdrEval(a) => cmd::pdr_eval::run(a),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Report(a) => cmd::report::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),

@@ -80,16 +80,18 @@ impl Default for EvalConfig {
     /// `preset = "paper"` in a config file merges onto them instead.
     fn default() -> Self {
         let positioner = PositionerConfig::default();
-        let mut radio_map = WalkMapConfig::default();
-        radio_map.interpolation = Some(InterpolationConfig {
-            along_walk: Some(AlongWalkConfig::default()),
-            spatial: Some(SpatialConfig {
-                cell_m: 3.0,
-                radius_m: 6.0,
-                kernel: Kernel::Gaussian { sigma_m: 3.0 },
-                ..SpatialConfig::default()
+        let radio_map = WalkMapConfig {
+            interpolation: Some(InterpolationConfig {
+                along_walk: Some(AlongWalkConfig::default()),
+                spatial: Some(SpatialConfig {
+                    cell_m: 3.0,
+                    radius_m: 6.0,
+                    kernel: Kernel::Gaussian { sigma_m: 3.0 },
+                    ..SpatialConfig::default()
+                }),
             }),
-        });
+            ..WalkMapConfig::default()
+        };
         Self {
             radio_map,
             matcher: positioner.matcher,

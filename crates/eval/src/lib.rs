@@ -33,6 +33,7 @@
 //! ```
 
 pub mod config;
+pub mod drawing;
 pub mod fingerprint_benchmark;
 pub mod fold;
 pub mod folds;

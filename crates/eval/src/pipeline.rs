@@ -492,6 +492,19 @@ pub fn run_prepared(
     schemes: &[String],
     on_done: &(dyn Fn() + Sync),
 ) -> Result<EvalReport, EvalError> {
+    run_prepared_observed(floors, prepared, cfg, schemes, on_done, &|_, _, _| {})
+}
+
+/// [`run_prepared`], handing each track to `on_track(index into prepared, index into
+/// schemes, track)` as it is made (the report page keeps a downsampled copy to draw).
+pub fn run_prepared_observed(
+    floors: &[FloorInput],
+    prepared: &[PreparedWalk],
+    cfg: &EvalConfig,
+    schemes: &[String],
+    on_done: &(dyn Fn() + Sync),
+    on_track: &(dyn Fn(usize, usize, &Track) + Sync),
+) -> Result<EvalReport, EvalError> {
     let configs: Vec<SchemeConfig> = schemes
         .iter()
         .map(|s| cfg.scheme(s))
@@ -505,6 +518,7 @@ pub fn run_prepared(
         .map(|&(w, s)| {
             let pw = &prepared[w];
             let track = run_scheme(&configs[s], pw, Some(&envs[pw.floor_index]), cfg)?;
+            on_track(w, s, &track);
             let from = if cfg.score_from_first_scan {
                 pw.first_scan_t
             } else {

@@ -12,6 +12,23 @@
 //!   "mode": "causal" | "offline",
 //!   "config": { ...the evaluation config used... }
 //! }
+//! ```
+//!
+//! With `wipdr eval --json FILE --json-tracks` (and always in the data of the `--report`
+//! page), the drawing data is added ([`crate::drawing`]; the existing fields are unchanged):
+//!
+//! ```text
+//! each entry of "walks" also has
+//!   "track": [[t_ms, x, y, sd_m or null], ...]     the scheme's track, downsampled for drawing
+//! "walk_data": [ { "floor", "walk", "fold",
+//!                  "waypoints": [[t_ms, x, y], ...],   the truth
+//!                  "fixes": [[t_ms, x, y], ...] }, ... ]   the walk's Wi-Fi fixes
+//! "plans": { "<floor>": { "width", "height", "walls": [[x1, y1, x2, y2], ...],
+//!                         "image": "data:image/png;base64,..." or null }, ... }
+//! "drawing": { "tolerance_m" }                     the downsampling tolerance
+//! ```
+//!
+//! ```text
 //! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max",
 //!             "floor_hit_rate", "evaal", "radius_95_coverage" }
 //! ```

@@ -459,6 +459,7 @@ mod tests {
                 errors: vec![(10, error, Some(0)), (20, 2.0 * error, Some(0))],
                 skipped: 1,
                 floor_scored: 0,
+                sd_m: vec![Some(1.0), None],
             },
         }
     }

@@ -45,14 +45,12 @@ pub fn run(args: Args) -> Result<()> {
     );
     let floors = crate::data::load_floors(&dirs)?;
     let cfg = wipdr_eval::pipeline::EvalConfig::default();
-    crate::cmd::eval::evaluate_and_report(
-        &floors,
-        &cfg,
-        &args.schemes,
-        args.json.as_deref(),
-        args.plots.as_deref(),
-        1,
-        false,
-    )?;
+    let outputs = crate::cmd::eval::Outputs {
+        json: args.json.as_deref(),
+        plots: args.plots.as_deref(),
+        plot_walks: 1,
+        ..Default::default()
+    };
+    crate::cmd::eval::evaluate_and_report(&floors, &cfg, &args.schemes, &outputs)?;
     Ok(())
 }

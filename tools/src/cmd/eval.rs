@@ -2,7 +2,7 @@
 //! `--shard I/N` runs one slice of it and `wipdr eval merge` joins the slices
 //! ([`wipdr_eval::shard`]).
 
-use crate::{data, eval_plots, progress};
+use crate::{data, eval_plots, progress, report as report_page};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use wipdr_eval::pipeline::{self, EvalConfig, FloorInput, PreparedWalk};
@@ -33,6 +33,14 @@ pub struct Args {
     /// Write the figures (pooled, per floor, per walk) as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Put the drawing data (downsampled tracks, truth, Wi-Fi fixes, floor plans) into the
+    /// `--json` file too, so that `wipdr report` can draw the walks from it.
+    #[arg(long, requires = "json")]
+    pub json_tracks: bool,
+    /// Write the report page: one self-contained HTML file (tables, error CDF, every walk
+    /// drawn on its floor; `docs/guide.md`, "The report page").
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
     /// Write plots into this folder: trajectories, error CDF, error against time.
     #[arg(long)]
     pub plots: Option<PathBuf>,
@@ -86,32 +94,80 @@ pub fn load_config(path: Option<&Path>) -> Result<EvalConfig> {
     }
 }
 
+/// What an evaluation writes besides the printed table.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Outputs<'a> {
+    /// The results JSON.
+    pub json: Option<&'a Path>,
+    /// Put the drawing data into the results JSON too.
+    pub json_tracks: bool,
+    /// The report page.
+    pub report: Option<&'a Path>,
+    /// The folder of PNG plots.
+    pub plots: Option<&'a Path>,
+    /// Walks per floor with trajectory plots.
+    pub plot_walks: usize,
+    /// Plot the worst walks of the last scheme.
+    pub plot_worst: bool,
+}
+
 /// Evaluates and prints; shared with `wipdr demo`.
 pub fn evaluate_and_report(
     floors: &[FloorInput],
     cfg: &EvalConfig,
     schemes: &[String],
-    json: Option<&Path>,
-    plots: Option<&Path>,
-    plot_walks: usize,
-    plot_worst: bool,
+    out: &Outputs<'_>,
 ) -> Result<EvalReport> {
     let items = pipeline::work_items(floors)?;
-    let (prepared, report) = evaluate_items(floors, cfg, schemes, &items)?;
+    let drawing = out.json_tracks || out.report.is_some();
+    let (prepared, report, store) = evaluate_items(floors, cfg, schemes, &items, drawing)?;
     check_scored(&report)?;
-    if let Some(path) = json {
-        write_json(path, &report.json_document(&serde_json::to_value(cfg)?))?;
+    let mut value = report.json_document(&serde_json::to_value(cfg)?);
+    if let Some(store) = store {
+        let started = std::time::Instant::now();
+        report_page::add_drawing(&mut value, floors, &prepared, schemes, store)?;
+        tracing::info!(seconds = started.elapsed().as_secs_f64(), "drawing data");
     }
-    if let Some(dir) = plots {
+    if let Some(path) = out.json {
+        if out.json_tracks || !drawing {
+            write_json(path, &value)?;
+        } else {
+            write_json(path, &without_drawing(&value))?;
+        }
+    }
+    if let Some(path) = out.report {
+        report_page::write_page(&value, &path.display().to_string(), path)?;
+    }
+    if let Some(dir) = out.plots {
         let options = eval_plots::PlotOptions {
-            walks_per_floor: plot_walks,
-            worst_of: plot_worst.then(|| schemes.last().cloned()).flatten(),
+            walks_per_floor: out.plot_walks,
+            worst_of: out.plot_worst.then(|| schemes.last().cloned()).flatten(),
             ..eval_plots::PlotOptions::default()
         };
         let files = eval_plots::write_all(dir, floors, &prepared, cfg, schemes, &report, &options)?;
         println!("wrote {} plots into {}", files, dir.display());
     }
     Ok(report)
+}
+
+/// `value` without the drawing data of [`report_page::add_drawing`] (the `--json` of a run
+/// with `--report` but without `--json-tracks`).
+fn without_drawing(value: &serde_json::Value) -> serde_json::Value {
+    let mut v = value.clone();
+    if let Some(o) = v.as_object_mut() {
+        for k in report_page::DRAWING_FIELDS {
+            o.remove(*k);
+        }
+    }
+    if let Some(walks) = v.get_mut("walks").and_then(serde_json::Value::as_array_mut) {
+        for w in walks
+            .iter_mut()
+            .filter_map(serde_json::Value::as_object_mut)
+        {
+            w.remove("track");
+        }
+    }
+    v
 }
 
 /// Prepares and runs the work items `items` (from [`pipeline::work_items`]) and prints the
@@ -121,7 +177,12 @@ fn evaluate_items(
     cfg: &EvalConfig,
     schemes: &[String],
     items: &[(usize, usize)],
-) -> Result<(Vec<PreparedWalk>, EvalReport)> {
+    drawing: bool,
+) -> Result<(
+    Vec<PreparedWalk>,
+    EvalReport,
+    Option<report_page::TrackStore>,
+)> {
     for s in schemes {
         cfg.scheme(s)?;
     }
@@ -133,7 +194,19 @@ fn evaluate_items(
         p
     };
     let pb = progress::bar((prepared.len() * schemes.len()) as u64, "running");
-    let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| pb.inc(1))?;
+    let store = drawing.then(|| report_page::TrackStore::new(prepared.len(), schemes.len()));
+    let report = pipeline::run_prepared_observed(
+        floors,
+        &prepared,
+        cfg,
+        schemes,
+        &|| pb.inc(1),
+        &|w, s, track| {
+            if let Some(store) = &store {
+                store.keep(&prepared, w, s, track);
+            }
+        },
+    )?;
     pb.finish_and_clear();
     let unmatched: usize = prepared.iter().map(|p| p.unmatched_scans).sum();
     let off_floor: usize = prepared.iter().map(|p| p.off_floor_fixes).sum();
@@ -171,7 +244,7 @@ fn evaluate_items(
         }
     );
     print!("{}", report.table());
-    Ok((prepared, report))
+    Ok((prepared, report, store))
 }
 
 /// Writes `document` (an evaluation's JSON) to `path`.
@@ -201,7 +274,7 @@ fn run_shard(
         items.len(),
         identity.items.len()
     );
-    let (_, report) = evaluate_items(floors, cfg, schemes, &items)?;
+    let (_, report, _) = evaluate_items(floors, cfg, schemes, &items, false)?;
     ShardReport::new(identity, items, report.clone()).write(json)?;
     println!(
         "\nwrote shard file {} (join all {} with `wipdr eval merge PARTS... --json OUT`)",
@@ -275,10 +348,14 @@ pub fn run(args: Args) -> Result<()> {
             &floors,
             &cfg,
             &args.schemes,
-            args.json.as_deref(),
-            args.plots.as_deref(),
-            args.plot_walks,
-            args.plot_worst,
+            &Outputs {
+                json: args.json.as_deref(),
+                json_tracks: args.json_tracks,
+                report: args.report.as_deref(),
+                plots: args.plots.as_deref(),
+                plot_walks: args.plot_walks,
+                plot_worst: args.plot_worst,
+            },
         )?,
     };
     if let Some(last) = args.by_index {

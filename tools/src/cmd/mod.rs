@@ -10,6 +10,7 @@ pub mod locate;
 pub mod pdr_eval;
 pub mod pdr_fit;
 pub mod plot;
+pub mod report;
 pub mod simulate;
 pub mod sweep;
 pub mod wifi_stats;

@@ -1,0 +1,281 @@
+//! The report page (`wipdr eval --report`, `wipdr report`) in a real browser: headless
+//! Chromium loads the page, runs its script, and the test reads the rendered DOM: every walk
+//! in the picker, a trajectory drawn, no script error. Where no Chromium is installed
+//! (`.ci/run` installs Debian's `chromium`), the browser part skips with a printed reason;
+//! the checks of the page's text still run.
+
+use serde_json::Value;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+mod common;
+use common::wipdr;
+
+/// The browser: `$WIPDR_CHROMIUM`, else the first of the usual names on `PATH`.
+fn chromium() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("WIPDR_CHROMIUM") {
+        return Some(PathBuf::from(p));
+    }
+    let path = std::env::var_os("PATH")?;
+    [
+        "chromium",
+        "chromium-browser",
+        "google-chrome",
+        "google-chrome-stable",
+    ]
+    .iter()
+    .flat_map(|name| std::env::split_paths(&path).map(move |dir| dir.join(name)))
+    .find(|p| p.is_file())
+}
+
+/// What the page's script left in the DOM.
+#[derive(Debug)]
+struct Rendered {
+    dom: String,
+    stderr: String,
+}
+
+impl Rendered {
+    /// The attribute `name` of the element with id `id`.
+    fn attribute(&self, id: &str, name: &str) -> Option<String> {
+        let start = self.dom.find(&format!("id=\"{id}\""))?;
+        let open = self.dom[..start].rfind('<')?;
+        let tag = &self.dom[open..open + self.dom[open..].find('>')?];
+        let at = tag.find(&format!(" {name}=\""))? + name.len() + 3;
+        Some(tag[at..at + tag[at..].find('"')?].to_owned())
+    }
+
+    /// The text inside the element with id `id` (up to its first child or end).
+    fn text_of(&self, id: &str) -> Option<&str> {
+        let start = self.dom.find(&format!("id=\"{id}\""))?;
+        let from = start + self.dom[start..].find('>')? + 1;
+        Some(&self.dom[from..from + self.dom[from..].find('<')?])
+    }
+}
+
+/// Loads `page` in headless Chromium and returns the DOM after its script ran.
+fn render(browser: &Path, page: &Path) -> Rendered {
+    let profile = tempfile::tempdir().unwrap();
+    let out = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--enable-logging=stderr",
+            "--v=0",
+            "--virtual-time-budget=20000",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg("--dump-dom")
+        .arg(format!("file://{}", page.canonicalize().unwrap().display()))
+        .output()
+        .expect("chromium runs");
+    assert!(
+        out.status.success(),
+        "chromium failed on {}: {}",
+        page.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Rendered {
+        dom: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// The distinct walks of a results JSON.
+fn walks_of(results: &Value) -> BTreeSet<(String, String)> {
+    results["walks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| {
+            (
+                w["floor"].as_str().unwrap().to_owned(),
+                w["walk"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect()
+}
+
+/// The checks on a rendered page: the script ran without error, listed `walks` walks in the
+/// picker, and drew at least `min_tracks` trajectories of the chosen walk (with points).
+fn check_rendered(r: &Rendered, walks: usize, min_tracks: usize) {
+    assert_eq!(
+        r.text_of("script-errors"),
+        Some(""),
+        "script errors in the page"
+    );
+    assert!(
+        !r.stderr.contains("Uncaught"),
+        "console error: {}",
+        r.stderr
+            .lines()
+            .filter(|l| l.contains("Uncaught"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    assert_eq!(
+        r.attribute("report-status", "data-state").as_deref(),
+        Some("ready"),
+        "the page's script did not finish"
+    );
+    assert_eq!(r.dom.matches("class=\"walk-row").count(), walks);
+    assert_eq!(
+        r.attribute("report-status", "data-walks-listed"),
+        Some(walks.to_string())
+    );
+    let drawn: usize = r
+        .attribute("report-status", "data-tracks-drawn")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
+    assert!(drawn >= min_tracks, "{drawn} tracks drawn");
+    let polylines = r
+        .dom
+        .match_indices("<polyline class=\"track\"")
+        .filter(|(at, _)| {
+            let tag = &r.dom[*at..*at + r.dom[*at..].find('>').unwrap()];
+            tag.split(" points=\"")
+                .nth(1)
+                .is_some_and(|p| p.contains(','))
+        })
+        .count();
+    assert_eq!(polylines, drawn, "tracks with points in the DOM");
+}
+
+fn browser_or_skip() -> Option<PathBuf> {
+    let b = chromium();
+    if b.is_none() {
+        eprintln!(
+            "skipped the browser part: no chromium on PATH (nor $WIPDR_CHROMIUM); \
+             `apt-get install chromium` brings it"
+        );
+    }
+    b
+}
+
+#[test]
+fn the_fixture_report_renders_in_chromium_and_equals_the_one_from_its_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"));
+    let schemes = wipdr_fusion::scheme_names().join(",");
+    let (page, json) = (tmp.path().join("r.html"), tmp.path().join("r.json"));
+    wipdr(
+        &[
+            "eval",
+            "--data",
+            dir.to_str().unwrap(),
+            "--schemes",
+            &schemes,
+            "--report",
+            page.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+            "--json-tracks",
+        ],
+        tmp.path(),
+    );
+    // The page from the saved JSON is the page the run wrote.
+    let again = tmp.path().join("again.html");
+    wipdr(
+        &[
+            "report",
+            json.to_str().unwrap(),
+            "--out",
+            again.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert_eq!(html, std::fs::read_to_string(&again).unwrap());
+    let results: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let walks = walks_of(&results);
+    assert!(walks.len() >= 5, "{} walks", walks.len());
+    // Every walk result has its drawn track; every walk its truth.
+    for w in results["walks"].as_array().unwrap() {
+        assert!(
+            !w["track"].as_array().unwrap().is_empty(),
+            "{} {}",
+            w["walk"],
+            w["scheme"]
+        );
+    }
+    assert_eq!(results["walk_data"].as_array().unwrap().len(), walks.len());
+    // Self-contained: no element loads anything.
+    for needle in ["src=\"http", "href=\"http", "url(http", "@import", "<link"] {
+        assert!(!html.contains(needle), "{needle} in the page");
+    }
+
+    // The same run's JSON without the drawing data: tables and picker, no tracks.
+    let mut bare = results.clone();
+    for k in ["walk_data", "plans", "drawing"] {
+        bare.as_object_mut().unwrap().remove(k);
+    }
+    for w in bare["walks"].as_array_mut().unwrap() {
+        w.as_object_mut().unwrap().remove("track");
+    }
+    let (bare_json, bare_page) = (tmp.path().join("bare.json"), tmp.path().join("bare.html"));
+    std::fs::write(&bare_json, serde_json::to_string(&bare).unwrap()).unwrap();
+    wipdr(
+        &[
+            "report",
+            bare_json.to_str().unwrap(),
+            "--out",
+            bare_page.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+
+    let Some(browser) = browser_or_skip() else {
+        return;
+    };
+    let rendered = render(&browser, &page);
+    check_rendered(&rendered, walks.len(), wipdr_fusion::scheme_names().len());
+    let rendered = render(&browser, &bare_page);
+    check_rendered(&rendered, walks.len(), 0);
+    assert!(rendered.dom.contains("no drawing data"));
+}
+
+#[test]
+fn a_real_floor_report_renders_in_chromium() {
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/ilc20/site2/F3"
+    ));
+    if !dir.is_dir() {
+        eprintln!("skipped: {} is absent", dir.display());
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (page, json) = (tmp.path().join("r.html"), tmp.path().join("r.json"));
+    wipdr(
+        &[
+            "eval",
+            "--data",
+            dir.to_str().unwrap(),
+            "--schemes",
+            "wifi,pdr,ekf,pmf",
+            "--report",
+            page.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    let results: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // `--json` without `--json-tracks` keeps the JSON as it was.
+    assert!(results.get("walk_data").is_none());
+    assert!(results["walks"][0].get("track").is_none());
+    let html = std::fs::read_to_string(&page).unwrap();
+    // The floor image is embedded.
+    assert!(html.contains("data:image/png;base64,"));
+    let Some(browser) = browser_or_skip() else {
+        return;
+    };
+    check_rendered(&render(&browser, &page), walks_of(&results).len(), 4);
+}
