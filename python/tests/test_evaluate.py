@@ -70,8 +70,13 @@ def test_a_floor_built_from_arrays_evaluates_as_the_one_read():
     plan = read.plan
     floor = wipdr.Floor(rebuilt, plan=wipdr.FloorPlan(plan.width, plan.height, outline=plan.outline), name="sim/F1")
     # The fixture plan has units (shops); their walls are not rebuilt here, so compare a
-    # scheme that does not use walls or walkable space.
-    assert_close(wipdr.evaluate([floor], ["ekf"]), wipdr.evaluate([read], ["ekf"]))
+    # scheme that does not use walls or walkable space, under the papers' settings (the
+    # defaults' map matching and path-loss extension use walkable space).
+    paper = {"preset": "paper"}
+    assert_close(
+        wipdr.evaluate([floor], ["ekf"], config=paper),
+        wipdr.evaluate([read], ["ekf"], config=paper),
+    )
 
 
 @pytest.mark.skipif(not (DATA / "ilc20" / "site1" / "F1").is_dir(), reason=f"real data not found under {DATA}")
