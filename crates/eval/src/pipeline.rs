@@ -19,7 +19,6 @@ use std::sync::Arc;
 use thiserror::Error;
 use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
-use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::trails::TrailRaster;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps};
 use wipdr_pdr::{Pdr, PdrConfig};
@@ -368,24 +367,12 @@ pub fn run_scheme(
     if let (Some(w), Some(e)) = (start, stage.estimate()) {
         track.push(TrackPoint::new(w.t, e.position).with_sd(e.sd_m()));
     }
-    let (steps, fixes) = (&walk.steps, &walk.observations);
-    for input in merged(steps, fixes) {
-        let t_input = match input {
-            FusionInput::Step(i) => steps[i].t,
-            FusionInput::Wifi(j) => fixes[j].t,
-        };
-        // A known start holds from its time: earlier inputs do not move it.
-        if start.is_some_and(|w| t_input < w.t) {
-            continue;
-        }
-        let (t, estimate) = match input {
-            FusionInput::Step(i) => (steps[i].t, stage.push_step(&steps[i])),
-            FusionInput::Wifi(j) => (fixes[j].t, stage.push_fix(&fixes[j])),
-        };
-        if let Some(e) = estimate {
-            track.push(TrackPoint::new(t, e.position).with_sd(e.sd_m()));
-        }
-    }
+    track.extend(
+        stage
+            .replay(&walk.steps, &walk.observations, start.map(|w| w.t))
+            .iter()
+            .map(TrackPoint::from),
+    );
     Ok(track)
 }
 

@@ -381,20 +381,7 @@ impl SchemeConfig {
                 c.validate()?;
                 Box::new(RobustOffset::new(c.clone()))
             }
-            Self::Pmf(c) => {
-                if ctx.walkable.is_none() {
-                    tracing::warn!("pmf built without a floor plan: no walkability");
-                }
-                Box::new(
-                    PointMassFilter::new(
-                        c.clone(),
-                        ctx.walkable.clone(),
-                        ctx.coverage.clone(),
-                        ctx.start,
-                    )?
-                    .with_trails(ctx.trails.clone()),
-                )
-            }
+            Self::Pmf(c) => Box::new(PointMassFilter::from_context(c, ctx)?),
         })
     }
 }

@@ -184,6 +184,21 @@ impl WalkableGrid {
         self.class[i]
     }
 
+    /// Mean over the grid's cells of a per-class weight: 1 for walkable cells, `unit` in a
+    /// unit, `outside` outside the outline (`pmf`'s step weight of a hypothesis anywhere).
+    pub fn mean_class_weight(&self, unit: f64, outside: f64) -> f64 {
+        let sum: f64 = self
+            .class
+            .iter()
+            .map(|c| match c {
+                CellClass::Walkable => 1.0,
+                CellClass::Unit => unit,
+                CellClass::Outside => outside,
+            })
+            .sum();
+        sum / self.class.len().max(1) as f64
+    }
+
     /// Share of walkable cells.
     pub fn walkable_fraction(&self) -> f64 {
         let n = self

@@ -11,6 +11,7 @@ use wipdr_core::{
     WifiScan, angle,
 };
 use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
+use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
 use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
 use wipdr_pdr::{Pdr, PdrConfig};
@@ -278,6 +279,36 @@ impl FusionStage {
             self.floor = fix.floor;
         }
         self.estimate()
+    }
+
+    /// Feeds a recorded stream's steps and fixes (each time-sorted) in time order, skipping
+    /// the inputs before `from` (a known start holds from its time); the estimate after every
+    /// input that gave one, stamped with that input's time. What the evaluation and
+    /// [`crate::smooth`] run.
+    pub fn replay(
+        &mut self,
+        steps: &[StepEvent],
+        fixes: &[WifiObservation],
+        from: Option<TimestampMs>,
+    ) -> Vec<PositionEstimate> {
+        let mut out = Vec::with_capacity(steps.len() + fixes.len());
+        for input in merged(steps, fixes) {
+            let t = match input {
+                FusionInput::Step(i) => steps[i].t,
+                FusionInput::Wifi(j) => fixes[j].t,
+            };
+            if from.is_some_and(|from| t < from) {
+                continue;
+            }
+            let estimate = match input {
+                FusionInput::Step(i) => self.push_step(&steps[i]),
+                FusionInput::Wifi(j) => self.push_fix(&fixes[j]),
+            };
+            if let Some(e) = estimate {
+                out.push(PositionEstimate { t, ..e });
+            }
+        }
+        out
     }
 
     /// Feeds an event.

@@ -1,43 +1,23 @@
-//! Offline estimates of a whole recorded stream: the fusion stage run forward and on the
-//! time-reversed stream, combined ([`wipdr_fusion::offline::two_filter`]).
+//! Offline estimates of a whole recorded stream: the scheme's own whole-walk smoother where
+//! it has one (`pmf`, [`wipdr_fusion::offline::native_smooth`]), else the fusion stage run
+//! forward and on the time-reversed stream, combined ([`wipdr_fusion::offline::two_filter`]).
 
 use crate::positioner::FusionStage;
 use crate::{PositionEstimate, PositionerConfig, PositioningError, Site};
 use wipdr_core::{Point2, StepEvent, WifiObservation};
 use wipdr_fusion::SchemeConfig;
+use wipdr_fusion::offline::native_smooth;
 use wipdr_fusion::offline::two_filter::{self, TimedEstimate};
-use wipdr_fusion::replay::{FusionInput, merged};
 
 /// Mixed into the seed of the backward run (random schemes draw other particles backward).
 const BACKWARD_SEED: u64 = 0x6261_636b_7761_7264;
 
-/// Feeds steps and fixes (time-sorted) through `stage`; the estimate after every input.
-fn replay(
-    stage: &mut FusionStage,
-    steps: &[StepEvent],
-    fixes: &[WifiObservation],
-) -> Vec<PositionEstimate> {
-    let mut out = Vec::with_capacity(steps.len() + fixes.len());
-    for input in merged(steps, fixes) {
-        let estimate = match input {
-            FusionInput::Step(i) => stage.push_step(&steps[i]),
-            FusionInput::Wifi(j) => stage.push_fix(&fixes[j]),
-        };
-        let t = match input {
-            FusionInput::Step(i) => steps[i].t,
-            FusionInput::Wifi(j) => fixes[j].t,
-        };
-        if let Some(e) = estimate {
-            out.push(PositionEstimate { t, ..e });
-        }
-    }
-    out
-}
-
 /// The smoothed track of `scheme` over a whole stream's steps and fixes: one estimate at each
 /// input time (and before the forward run's first estimate, wherever the backward run has
 /// one), each from the inputs before and after it. The floor is the forward run's latest
-/// (the fixes' floors are the front end's, scheme-independent).
+/// (the fixes' floors are the front end's, scheme-independent). A scheme with its own
+/// whole-walk smoother (`pmf`) uses it unless a static start is configured (then, and for
+/// a walk too large for it, the two-filter).
 ///
 /// ```
 /// use wipdr_core::{Candidate, MotionState, Point2, StepEvent, WifiObservation};
@@ -64,12 +44,38 @@ pub fn smooth_fusion(
     steps: &[StepEvent],
     fixes: &[WifiObservation],
 ) -> Result<Vec<PositionEstimate>, PositioningError> {
+    if config.static_start.is_none()
+        && let Some(native) = native_smooth(scheme, &site.build_context(seed, None), steps, fixes)
+    {
+        let track = native.map_err(|source| PositioningError::Scheme {
+            scheme: scheme.name().to_string(),
+            source,
+        })?;
+        let walkable = site.walkable.as_ref().filter(|_| config.map_matching);
+        let mut k = 0usize;
+        let mut floor = None;
+        return Ok(track
+            .into_iter()
+            .map(|e| {
+                while k < fixes.len() && fixes[k].t <= e.t {
+                    floor = fixes[k].floor.or(floor);
+                    k += 1;
+                }
+                PositionEstimate {
+                    t: e.t,
+                    position: walkable.map_or(e.position, |g| g.map_match(e.position)),
+                    floor,
+                    covariance: e.covariance,
+                }
+            })
+            .collect());
+    }
     let mut forward_stage = FusionStage::with_scheme(site, scheme, config, seed, None)?;
-    let forward = replay(&mut forward_stage, steps, fixes);
+    let forward = forward_stage.replay(steps, fixes, None);
     let (back_steps, back_fixes, end) = two_filter::reversed(steps, fixes);
     let mut backward_stage =
         FusionStage::with_scheme(site, scheme, config, seed ^ BACKWARD_SEED, None)?;
-    let backward = replay(&mut backward_stage, &back_steps, &back_fixes);
+    let backward = backward_stage.replay(&back_steps, &back_fixes, None);
     let timed = |e: &PositionEstimate| -> TimedEstimate { (e.t, e.position, e.covariance) };
     let joined = two_filter::combine(
         &forward.iter().map(timed).collect::<Vec<_>>(),

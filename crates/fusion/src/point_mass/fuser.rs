@@ -13,20 +13,81 @@ impl Fuser for PointMassFilter {
     }
 
     fn on_step(&mut self, step: &StepEvent) {
+        self.apply_step(step);
+    }
+
+    fn on_wifi(&mut self, obs: &WifiObservation) {
+        self.apply_fix(obs);
+    }
+
+    fn estimate(&self) -> Option<Estimate> {
+        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
+            return None;
+        }
+        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
+        let p = Point2::from(o + self.pdr);
+        let mut covariance = self.spread_about(o);
+        crate::kalman::enforce_symmetric_pd(&mut covariance);
+        (p.x.is_finite() && p.y.is_finite()).then(|| Estimate {
+            covariance: Some(covariance),
+            ..Estimate::point(self.t, p, self.guard.diagnostics())
+        })
+    }
+}
+
+impl PointMassFilter {
+    /// A step: the drift blur, then the walls' (and trails') weights at the new position.
+    /// `Some(blurs)` (how many blurs the drift made) when the lattice took it, `None` when the
+    /// guard refused it or the lattice is not laid yet.
+    pub(super) fn apply_step(&mut self, step: &StepEvent) -> Option<usize> {
         if !self.guard.accept_step(step) {
-            return;
+            return None;
         }
         self.t = step.t;
         self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
         if !self.initialised {
-            return;
+            return None;
         }
         let h = self.cfg.cell_m;
         self.pending_drift += self.cfg.drift_m2_per_step;
+        let mut blurs = 0;
         while self.pending_drift >= 0.5 * h * h {
             self.blur();
+            blurs += 1;
             self.pending_drift -= 0.5 * h * h;
         }
+        let total = self.weigh_step();
+        self.normalise(total);
+        self.choose_mode();
+        Some(blurs)
+    }
+
+    /// A Wi-Fi fix (laying the lattice around the first one when there is no plan); whether
+    /// the lattice took it.
+    pub(super) fn apply_fix(&mut self, obs: &WifiObservation) -> bool {
+        if !self.guard.accept_wifi(obs) {
+            return false;
+        }
+        self.t = obs.t;
+        if !self.initialised {
+            let m = Vector2::new(100.0, 100.0);
+            if self
+                .lay_lattice(obs.estimate - m, obs.estimate + m)
+                .is_err()
+            {
+                return false;
+            }
+        }
+        let total = self.weigh_fix(obs);
+        self.normalise(Some(total));
+        self.choose_mode();
+        self.reporting = true;
+        true
+    }
+
+    /// Multiplies the active cells by the step likelihood at the current displacement (the
+    /// walkable class, the trails); the represented total, or `None` when neither is there.
+    pub(super) fn weigh_step(&mut self) -> Option<f64> {
         let trails = self.trails.clone().filter(|_| self.cfg.trail_sd_m > 0.0);
         let (off, trail_inv) = (
             self.cfg.off_trail_likelihood,
@@ -39,7 +100,10 @@ impl Fuser for PointMassFilter {
             }
             None => 1.0,
         };
-        let total = if let Some(grid) = self.walkable.clone() {
+        // A background hypothesis is somewhere on the plan (the plan's mean class weight)
+        // and, with the trail prior, most likely off the trails.
+        let background = self.step_background * if trails.is_some() { off } else { 1.0 };
+        if let Some(grid) = self.walkable.clone() {
             let (unit, outside) = (self.cfg.unit_likelihood, self.cfg.outside_likelihood);
             let raster = *grid.grid();
             let class_weight = |row: usize, column: usize| {
@@ -53,6 +117,7 @@ impl Fuser for PointMassFilter {
                 }
             };
             Some(self.weigh(
+                background,
                 |x| raster.col_of(x).unwrap_or(NO_CELL),
                 |y, xs, columns, weights| {
                     // `class_at(pos)` split into its row (once per row) and column lookups.
@@ -71,6 +136,7 @@ impl Fuser for PointMassFilter {
             ))
         } else if trails.is_some() {
             Some(self.weigh(
+                background,
                 |_| NO_CELL,
                 |y, xs, _, weights| {
                     for (weight, &x) in weights.iter_mut().zip(xs) {
@@ -80,25 +146,12 @@ impl Fuser for PointMassFilter {
             ))
         } else {
             None
-        };
-        self.normalise(total);
-        self.choose_mode();
+        }
     }
 
-    fn on_wifi(&mut self, obs: &WifiObservation) {
-        if !self.guard.accept_wifi(obs) {
-            return;
-        }
-        self.t = obs.t;
-        if !self.initialised {
-            let m = Vector2::new(100.0, 100.0);
-            if self
-                .lay_lattice(obs.estimate - m, obs.estimate + m)
-                .is_err()
-            {
-                return;
-            }
-        }
+    /// Multiplies the active cells by the Wi-Fi likelihood of `obs` (robust, coverage aware)
+    /// at the current displacement; the represented total.
+    pub(super) fn weigh_fix(&mut self, obs: &WifiObservation) -> f64 {
         let f = obs.estimate;
         // Fix quality: a poor best match (large signal distance) is likely a coverage gap or
         // a gross fix, so its Gaussian part is down-weighted (a logistic in the distance).
@@ -114,6 +167,7 @@ impl Fuser for PointMassFilter {
         // `is_gap(pos)` split into its row and column lookups, as in `on_step`.
         let gap = self.gap.take();
         let total = self.weigh(
+            outlier,
             |x| {
                 gap.as_ref()
                     .and_then(|g| g.grid.col_of(x))
@@ -140,22 +194,6 @@ impl Fuser for PointMassFilter {
             },
         );
         self.gap = gap;
-        self.normalise(Some(total));
-        self.choose_mode();
-        self.reporting = true;
-    }
-
-    fn estimate(&self) -> Option<Estimate> {
-        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
-            return None;
-        }
-        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
-        let p = Point2::from(o + self.pdr);
-        let mut covariance = self.spread_about(o);
-        crate::kalman::enforce_symmetric_pd(&mut covariance);
-        (p.x.is_finite() && p.y.is_finite()).then(|| Estimate {
-            covariance: Some(covariance),
-            ..Estimate::point(self.t, p, self.guard.diagnostics())
-        })
+        total
     }
 }

@@ -8,7 +8,7 @@ use super::MAX_CELLS;
 
 /// Whether each position cell (square cells of the lattice's size over the lattice's
 /// position extent) is farther than the gap distance from every reference point.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct GapRaster {
     /// The raster's cells.
     pub(super) grid: GridSpec,

@@ -169,7 +169,8 @@ impl PointMassFilter {
         self.active = (a0, a1, b0, b1);
     }
 
-    /// Multiplies every active cell by a weight of its position `o + D` and returns the
+    /// Multiplies every active cell by a weight of its position `o + D`, and the background
+    /// by `background_weight`, and returns the
     /// represented total afterwards (summed as [`Self::active_total`] does, for
     /// [`Self::normalise`]). The positions of one window row share their y and those of one
     /// column their x, so the weights are filled a row at a time:
@@ -178,6 +179,7 @@ impl PointMassFilter {
     /// fills `weights`.
     pub(super) fn weigh(
         &mut self,
+        background_weight: f64,
         column_of: impl Fn(f64) -> usize,
         mut row_weights: impl FnMut(f64, &[f64], &[usize], &mut [f64]),
     ) -> f64 {
@@ -194,6 +196,10 @@ impl PointMassFilter {
         buf.weights.clear();
         buf.weights.resize(w, 0.0);
         let n_active = (w * (y1 - y0 + 1)) as f64;
+        // The background cells (outside the window) are weighed alike, by the input's weight
+        // of a hypothesis far from where the window is (not by 1, which would let them gain
+        // on the window at every input until they held most of the mass).
+        self.bg *= background_weight;
         let mut total = self.bg * (self.prob.len() as f64 - n_active);
         for r in y0..=y1 {
             let y = lattice.centre_y(r) + self.pdr.y;

@@ -62,13 +62,15 @@
 //! The module's files: `config` (the serde config and its checks), `lattice` (laying the
 //! hypotheses, normalisation, the active window, the blur, the weighing pass), `mode` (the
 //! mode search and the estimate), `gap` (the coverage-gap raster), `fuser` (the step and
-//! Wi-Fi likelihoods behind [`Fuser`]) and the tests.
+//! Wi-Fi likelihoods behind [`Fuser`]), `smoother` (forward-backward smoothing of a whole
+//! walk on the lattice, [`PointMassFilter::smooth_walk`]) and the tests.
 
 mod config;
 mod fuser;
 mod gap;
 mod lattice;
 mod mode;
+mod smoother;
 #[cfg(test)]
 mod tests;
 
@@ -78,16 +80,17 @@ use wipdr_core::{GridError, GridSpec, Point2, TimestampMs, Vector2};
 
 use crate::trails::TrailRaster;
 use crate::walkable::WalkableGrid;
-use crate::{FusionError, InputGuard};
+use crate::{BuildContext, FusionError, InputGuard};
 
 pub use config::PointMassConfig;
 use gap::GapRaster;
+pub use smoother::{MAX_STORED_CELLS, SmoothError};
 
 /// Most cells the lattice may have.
 pub const MAX_CELLS: usize = 4 << 20;
 
 /// The point-mass filter; see the [module docs](self).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct PointMassFilter {
     cfg: PointMassConfig,
     walkable: Option<Arc<WalkableGrid>>,
@@ -105,6 +108,8 @@ pub struct PointMassFilter {
     active: (usize, usize, usize, usize),
     floor: f64,
     bg: f64,
+    /// Step weight of a background hypothesis: the plan's mean class weight (1 without one).
+    step_background: f64,
     sat: Vec<f64>,
     /// Per-input buffers of one window row (positions, raster columns, weights).
     row_buffers: RowBuffers,
@@ -119,7 +124,7 @@ pub struct PointMassFilter {
 
 /// Reused buffers of one active-window row, so that weighing, the blur and the mode search
 /// allocate nothing per input.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 struct RowBuffers {
     /// x of the positions `o + D` of the window's columns (shared by every row).
     xs: Vec<f64>,
@@ -154,8 +159,12 @@ impl PointMassFilter {
         cfg.validate()?;
         let placeholder = GridSpec::new(Point2::origin(), cfg.cell_m, 1, 1, 1)
             .map_err(grid_error("cell_m", "no lattice"))?;
+        let step_background = walkable.as_ref().map_or(1.0, |g| {
+            g.mean_class_weight(cfg.unit_likelihood, cfg.outside_likelihood)
+        });
         let mut f = Self {
             cfg,
+            step_background,
             walkable,
             coverage,
             trails: None,
@@ -188,6 +197,21 @@ impl PointMassFilter {
             f.reporting = true;
         }
         Ok(f)
+    }
+
+    /// Builds `pmf` from what [`crate::SchemeConfig::build`] gets: the plan's walkable space,
+    /// the radio map's reference points, a known start and the trails.
+    pub fn from_context(cfg: &PointMassConfig, ctx: &BuildContext) -> Result<Self, FusionError> {
+        if ctx.walkable.is_none() {
+            tracing::warn!("pmf built without a floor plan: no walkability");
+        }
+        Ok(Self::new(
+            cfg.clone(),
+            ctx.walkable.clone(),
+            ctx.coverage.clone(),
+            ctx.start,
+        )?
+        .with_trails(ctx.trails.clone()))
     }
 
     /// Adds the training trails ([`crate::trails`]): with `trail_sd_m > 0`, each step weighs
