@@ -332,3 +332,48 @@ proptest! {
         }
     }
 }
+
+/// North 21 m then east 21 m; fixes every 5 s along the truth, 4 m off to alternating sides.
+fn l_walk() -> (Vec<StepEvent>, Vec<WifiObservation>) {
+    let steps = (1..=60)
+        .map(|k| {
+            step(
+                500 * k,
+                if k <= 30 {
+                    0.0
+                } else {
+                    std::f64::consts::FRAC_PI_2
+                },
+            )
+        })
+        .collect();
+    let fixes = (0..=6)
+        .map(|k| {
+            let t = 5_000 * k;
+            let s = 0.7 * (t / 500) as f64;
+            let (x, y) = if s <= 21.0 {
+                (0.0, s)
+            } else {
+                (s - 21.0, 21.0)
+            };
+            fix(t, x + if k % 2 == 0 { 4.0 } else { -4.0 }, y)
+        })
+        .collect();
+    (steps, fixes)
+}
+
+#[test]
+fn the_last_smoothed_estimate_is_the_forward_filters() {
+    let (steps, fixes) = l_walk();
+    let new = || PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+    let track = new().smooth_walk(&steps, &fixes).unwrap();
+    let mut forward = new();
+    for input in crate::replay::merged(&steps, &fixes) {
+        match input {
+            crate::replay::FusionInput::Step(i) => forward.on_step(&steps[i]),
+            crate::replay::FusionInput::Wifi(j) => forward.on_wifi(&fixes[j]),
+        }
+    }
+    let (a, b) = (track.last().unwrap(), forward.estimate().unwrap());
+    assert!((a.position - b.position).norm() < 0.5, "{a:?} vs {b:?}");
+}
