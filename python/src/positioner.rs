@@ -2,7 +2,7 @@
 //! Python, one sample at a time.
 
 use crate::convert::{config_of, entries_of, f64_rows, scan_of, time_of, to_array};
-use crate::errors::{eval_error, input_error};
+use crate::errors::{chain, eval_error, input_error};
 use crate::floor::{PyFloor, PyFloorPlan};
 use crate::walk::PyWalk;
 use numpy::PyArray2;
@@ -482,6 +482,20 @@ impl PyPositioner {
     /// ``wipdr locate`` writes.
     fn track<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         Ok(track_array(py, &self.stream()?.track))
+    }
+
+    /// The whole stream so far smoothed offline (estimates that use the inputs after their
+    /// time: ``pmf``'s forward-backward product on its lattice, the two-filter smoother for
+    /// the other schemes), as a ``(n, 5)`` array like :meth:`track`; the
+    /// ``wipdr eval --offline`` track of this stream. Raises ``ValueError`` for a positioner
+    /// built with a ``start`` (a known start is not smoothed).
+    fn smooth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let track = self
+            .stream()?
+            .positioner
+            .smooth()
+            .map_err(|e| input_error(format!("Positioner.smooth: {}", chain(&e))))?;
+        Ok(track_array(py, &track))
     }
 
     /// What the stream received: samples, out_of_order, steps, scans, unmatched_scans,

@@ -96,3 +96,28 @@ def test_a_radio_map_from_records_keeps_floors():
         [[float(i), 0.0, i % 2] for i in range(6)], [[(1, -50.0 - i)] for i in range(6)]
     )
     assert rm.floors == [0, 1, 0, 1, 0, 1]
+
+
+@pytest.mark.parametrize("scheme", ["ekf", "pmf"])
+def test_smooth_is_the_offline_locate(floor, scheme):
+    walk, training = split(floor, 1)
+    training = wipdr.Floor(training, plan=floor.plan, name=floor.name)
+    expected = wipdr.locate(walk, training, scheme, config={"offline": True})
+    causal = wipdr.locate(walk, training, scheme)
+    p = wipdr.Positioner(wipdr.RadioMap.from_walks(training), scheme, floor_plan=floor.plan, stream_id=walk.id)
+    push_all(p, walk)
+    smoothed = p.smooth()
+    assert smoothed.dtype == np.float64 and smoothed.shape[1] == 5 and len(smoothed) > 20
+    assert_tracks_equal(smoothed, expected)
+    # Smoothing uses the later inputs: the track differs from the causal one.
+    assert smoothed.shape != causal.shape or not np.array_equal(smoothed[:, 1:3], causal[:, 1:3])
+
+
+def test_smooth_refuses_a_known_start(floor):
+    walk, training = split(floor, 1)
+    training = wipdr.Floor(training, plan=floor.plan, name=floor.name)
+    start = (walk.waypoints[0, 0], walk.waypoints[0, 1], walk.waypoints[0, 2])
+    p = wipdr.Positioner(wipdr.RadioMap.from_walks(training), "pdr", floor_plan=floor.plan, start=start)
+    push_all(p, walk)
+    with pytest.raises(ValueError, match="smooth"):
+        p.smooth()

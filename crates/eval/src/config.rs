@@ -100,6 +100,9 @@ impl Default for EvalConfig {
                 min_predicted_dbm: -85.0,
                 ..PropagationConfig::default()
             }),
+            // Every scheme at its shipped defaults (`SchemeConfig::default_for`), not the
+            // papers' presets that `paper()` lists.
+            schemes: BTreeMap::new(),
             ..Self::paper()
         }
     }
@@ -108,7 +111,7 @@ impl Default for EvalConfig {
 impl EvalConfig {
     /// The papers' settings: [`PositionerConfig::paper`] (WKNN k = 5, no map matching), the
     /// radio map of the measured fingerprints alone (no interpolation, no path-loss
-    /// extension), every scheme at its own defaults.
+    /// extension), every scheme at its paper preset ([`SchemeConfig::paper_for`]).
     pub fn paper() -> Self {
         let positioner = PositionerConfig::paper();
         Self {
@@ -120,7 +123,10 @@ impl EvalConfig {
             calibration: CalibrationConfig::default(),
             score_from_first_scan: true,
             seed: positioner.seed,
-            schemes: BTreeMap::new(),
+            schemes: wipdr_fusion::scheme_names()
+                .iter()
+                .filter_map(|n| SchemeConfig::paper_for(n).ok().map(|c| (n.to_string(), c)))
+                .collect(),
             map_matching: positioner.map_matching,
             static_start: positioner.static_start,
             score_first_m: None,
@@ -304,6 +310,30 @@ mod tests {
         assert_eq!(
             EvalConfig::from_toml("preset = \"recommended\"\n", "t").unwrap(),
             d
+        );
+        // Every scheme: its shipped defaults here, its paper preset there, and a partial
+        // scheme section merges onto the preset's values.
+        for name in wipdr_fusion::scheme_names() {
+            assert_eq!(
+                d.scheme(name).unwrap(),
+                SchemeConfig::default_for(name).unwrap()
+            );
+            assert_eq!(
+                p.scheme(name).unwrap(),
+                SchemeConfig::paper_for(name).unwrap()
+            );
+        }
+        let text = "preset = \"paper\"\n[schemes.ekf]\nscheme = \"ekf\"\nq_heading_deg = 3.0\n";
+        let Ok(SchemeConfig::Ekf(ekf)) = EvalConfig::from_toml(text, "t").unwrap().scheme("ekf")
+        else {
+            panic!("ekf section");
+        };
+        assert_eq!(
+            ekf,
+            wipdr_fusion::EkfConfig {
+                q_heading_deg: 3.0,
+                ..wipdr_fusion::EkfConfig::paper()
+            }
         );
         let err = EvalConfig::from_toml("preset = \"best\"\n", "t")
             .unwrap_err()

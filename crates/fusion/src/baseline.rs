@@ -25,6 +25,13 @@ impl Default for PdrOnlyConfig {
     }
 }
 
+impl PdrOnlyConfig {
+    /// The papers' PDR: step lengths as the step-length model gives them (the default).
+    pub fn paper() -> Self {
+        Self::default()
+    }
+}
+
 /// Wi-Fi only: the latest fix, held until the next one.
 #[derive(Debug, Clone)]
 pub struct WifiOnly {

@@ -279,6 +279,37 @@ impl SchemeConfig {
         })
     }
 
+    /// The papers' config of scheme `name` (each config's `paper()`): the values the papers
+    /// print where they print them ([`EkfConfig::paper`], [`AwsConfig::paper`],
+    /// [`TcpfConfig::paper`]); the particle filters' paper gives no numbers and `wifi`,
+    /// `pdr`, `rof` and `pmf` have none to give, so their presets say what they hold.
+    ///
+    /// ```
+    /// use wipdr_fusion::{SchemeConfig, scheme_names};
+    /// for name in scheme_names() {
+    ///     assert_eq!(SchemeConfig::paper_for(name).unwrap().name(), *name);
+    /// }
+    /// assert_ne!(SchemeConfig::paper_for("ekf").unwrap(), SchemeConfig::default_for("ekf").unwrap());
+    /// ```
+    pub fn paper_for(name: &str) -> Result<Self, FusionError> {
+        Ok(match name {
+            "wifi" => Self::Wifi(WifiOnlyConfig::default()),
+            "pdr" => Self::Pdr(PdrOnlyConfig::paper()),
+            "ekf" => Self::Ekf(EkfConfig::paper()),
+            "aekf" => Self::Aekf(EkfConfig::paper()),
+            "akf" => Self::Akf(EkfConfig::paper()),
+            "rkf" => Self::Rkf(EkfConfig::paper()),
+            "arkf" => Self::Arkf(EkfConfig::paper()),
+            "aws" => Self::Aws(AwsConfig::paper()),
+            "tcpf" => Self::Tcpf(TcpfConfig::paper()),
+            "pf" => Self::Pf(PfConfig::paper()),
+            "apf" => Self::Apf(PfConfig::paper()),
+            "rof" => Self::Rof(RobustOffsetConfig::paper()),
+            "pmf" => Self::Pmf(PointMassConfig::paper()),
+            other => return Err(FusionError::UnknownScheme(other.to_string())),
+        })
+    }
+
     /// The scheme's name.
     pub fn name(&self) -> &'static str {
         match self {
@@ -381,7 +412,7 @@ impl SchemeConfig {
                 c.validate()?;
                 Box::new(RobustOffset::new(c.clone()))
             }
-            Self::Pmf(c) => Box::new(PointMassFilter::from_context(c, ctx)?),
+            Self::Pmf(c) => Box::new(point_mass::PointMassMixture::from_context(c, ctx)?),
         })
     }
 }

@@ -129,6 +129,14 @@ impl Default for PfConfig {
     }
 }
 
+impl PfConfig {
+    /// Paper 004 §4.3 gives no numeric values for its particle filters, so its preset is the
+    /// default above (ours, untuned on the recorded walks).
+    pub fn paper() -> Self {
+        Self::default()
+    }
+}
+
 /// Upper bound of [`PfConfig::n_particles`]: one million particles (about 100 MB of state,
 /// seconds per fix); a larger value is a config error, not an allocation failure.
 pub const MAX_PARTICLES: usize = 1_000_000;

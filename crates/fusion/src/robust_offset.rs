@@ -54,6 +54,11 @@ impl Default for RobustOffsetConfig {
 }
 
 impl RobustOffsetConfig {
+    /// `rof` is wipdr's own baseline, in no paper: its preset is the default above.
+    pub fn paper() -> Self {
+        Self::default()
+    }
+
     /// Checks the fields.
     pub fn validate(&self) -> Result<(), FusionError> {
         if self.window == 0 {

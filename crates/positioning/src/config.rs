@@ -53,6 +53,7 @@ impl Default for PositionerConfig {
         Self {
             matcher: recommended_matcher(),
             map_matching: true,
+            scheme: SchemeConfig::Ekf(wipdr_fusion::EkfConfig::default()),
             ..Self::paper()
         }
     }
@@ -74,14 +75,14 @@ pub fn recommended_matcher() -> MatcherConfig {
 }
 
 impl PositionerConfig {
-    /// The papers' settings: WKNN (k = 5, shared-AP distance), no map matching, `ekf`.
+    /// The papers' settings: WKNN (k = 5, shared-AP distance), no map matching, `ekf` with
+    /// the papers' values ([`wipdr_fusion::EkfConfig::paper`]).
     pub fn paper() -> Self {
         Self {
             matcher: MatcherConfig::default(),
             query: default_query(),
             pdr: PdrConfig::default(),
-            scheme: SchemeConfig::default_for("ekf")
-                .unwrap_or(SchemeConfig::Ekf(Default::default())),
+            scheme: SchemeConfig::Ekf(wipdr_fusion::EkfConfig::paper()),
             map_matching: false,
             static_start: None,
             floor: crate::FloorConfig::default(),

@@ -3,7 +3,8 @@
 //! - [`two_filter`]: any scheme run forward and on the time-reversed walk, the two estimates
 //!   combined at each time (information-weighted where both have a covariance).
 //! - [`native_smooth`]: a scheme's own whole-walk smoother where it has one: `pmf`'s exact
-//!   forward-backward product on its lattice ([`PointMassFilter::smooth_walk`]).
+//!   forward-backward product on its lattice ([`crate::PointMassFilter::smooth_walk`]; with
+//!   heading hypotheses, each one's, weighed by evidence: [`PointMassMixture::smooth_walk`]).
 //!
 //! Tried and not kept (session 6, `docs/results/accuracy.md`): placing the PDR shape onto all
 //! of a walk's Wi-Fi fixes by a locally weighted robust rigid fit: 5.9-6.4 m pooled on the
@@ -13,7 +14,7 @@ pub mod two_filter;
 
 use wipdr_core::{StepEvent, WifiObservation};
 
-use crate::point_mass::PointMassFilter;
+use crate::point_mass::PointMassMixture;
 use crate::{BuildContext, Estimate, FusionError, SchemeConfig};
 
 /// The smoothed estimate after every input of a whole walk by `scheme`'s own smoother:
@@ -44,7 +45,7 @@ pub fn native_smooth(
 ) -> Option<Result<Vec<Estimate>, FusionError>> {
     match scheme {
         SchemeConfig::Pmf(cfg) => {
-            let filter = match PointMassFilter::from_context(cfg, ctx) {
+            let filter = match PointMassMixture::from_context(cfg, ctx) {
                 Ok(f) => f,
                 Err(e) => return Some(Err(e)),
             };

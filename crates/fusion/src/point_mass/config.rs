@@ -4,8 +4,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::FusionError;
 
-/// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`
-/// and docs/results/fusion-real.md), so they are optimistic there.
+/// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`,
+/// `docs/sweeps/pmf-session7.toml`; docs/results/accuracy.md), so they are optimistic there;
+/// [`PointMassConfig::paper`] keeps the settings before the session-7 sweep.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PointMassConfig {
@@ -20,19 +21,21 @@ pub struct PointMassConfig {
     pub unit_likelihood: f64,
     /// Weight of a hypothesis whose position is outside the floor outline, per step.
     pub outside_likelihood: f64,
-    /// Standard deviation of a good Wi-Fi fix, metres.
+    /// Standard deviation of a good Wi-Fi fix, metres (5; [`PointMassConfig::paper`]: 6).
     pub wifi_sd_m: f64,
-    /// Outlier floor of the Wi-Fi likelihood (relative to its peak of 1).
+    /// Outlier floor of the Wi-Fi likelihood (relative to its peak of 1; 0.05,
+    /// [`PointMassConfig::paper`]: 0.1).
     pub wifi_outlier: f64,
     /// Distance from the nearest reference point beyond which a position counts as a
-    /// coverage gap, metres (0: no coverage awareness; also off when the filter is built
+    /// coverage gap, metres (15; 0: no coverage awareness; also off when the filter is built
     /// without the radio map's reference points).
     pub gap_distance_m: f64,
     /// Peak Wi-Fi likelihood of a hypothesis in a coverage gap (relative to a peak of 1 in
     /// covered space): a fix there lands at some covered place near the walker, so the
     /// likelihood is a wide Gaussian of standard deviation `gap_sd_m` (plus the outlier floor).
     pub gap_likelihood: f64,
-    /// Standard deviation of the fix about a walker in a coverage gap, metres.
+    /// Standard deviation of the fix about a walker in a coverage gap, metres (35;
+    /// [`PointMassConfig::paper`]: 20).
     pub gap_sd_m: f64,
     /// Recovery floor after each update, as a share of the uniform probability.
     pub recovery: f64,
@@ -56,6 +59,13 @@ pub struct PointMassConfig {
     pub mode_hysteresis: f64,
     /// Multiplies every step length (1 = as PDR reports).
     pub step_scale: f64,
+    /// Added to every step's heading, degrees (0 = as PDR reports): one hypothesis of a
+    /// constant PDR heading bias.
+    pub heading_offset_deg: f64,
+    /// Constant PDR heading biases, degrees, each run as its own lattice and weighed by its
+    /// evidence ([`super::PointMassMixture`]); each is added to `heading_offset_deg`. Empty:
+    /// one lattice. Every entry multiplies the work.
+    pub heading_hypotheses_deg: Vec<f64>,
     /// Width (a Gaussian's standard deviation, metres) of the training trails
     /// ([`crate::trails`]) in the per-step weight; 0 turns the trail prior off (also off when
     /// the filter is built without trails).
@@ -73,11 +83,11 @@ impl Default for PointMassConfig {
             drift_m2_per_step: 0.05,
             unit_likelihood: 0.8,
             outside_likelihood: 0.3,
-            wifi_sd_m: 6.0,
-            wifi_outlier: 0.1,
+            wifi_sd_m: 5.0,
+            wifi_outlier: 0.05,
             gap_distance_m: 15.0,
             gap_likelihood: 0.3,
-            gap_sd_m: 20.0,
+            gap_sd_m: 35.0,
             recovery: 1e-6,
             estimate_radius_m: 10.0,
             sd_floor_m: 2.5,
@@ -86,6 +96,8 @@ impl Default for PointMassConfig {
             mode_radius_m: 5.0,
             mode_hysteresis: 0.5,
             step_scale: 1.0,
+            heading_offset_deg: 0.0,
+            heading_hypotheses_deg: Vec::new(),
             trail_sd_m: 0.0,
             off_trail_likelihood: 0.5,
         }
@@ -93,6 +105,18 @@ impl Default for PointMassConfig {
 }
 
 impl PointMassConfig {
+    /// `pmf` is wipdr's own scheme, in no paper: its preset is the settings it had before the
+    /// five-floor sweeps of session 7 (`wifi_outlier` 0.1, `gap_sd_m` 20 m, `wifi_sd_m` 6 m),
+    /// which earlier figures in `docs/results/` were measured with.
+    pub fn paper() -> Self {
+        Self {
+            wifi_sd_m: 6.0,
+            wifi_outlier: 0.1,
+            gap_sd_m: 20.0,
+            ..Self::default()
+        }
+    }
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), FusionError> {
         let positive = [
@@ -122,6 +146,35 @@ impl PointMassConfig {
             ("quality_distance", self.quality_distance),
             ("trail_sd_m", self.trail_sd_m),
         ];
+        if self.heading_hypotheses_deg.len() > super::mixture::MAX_HEADING_HYPOTHESES {
+            return Err(FusionError::InvalidConfig {
+                field: "heading_hypotheses_deg",
+                reason: format!(
+                    "at most {} hypotheses, got {}",
+                    super::mixture::MAX_HEADING_HYPOTHESES,
+                    self.heading_hypotheses_deg.len()
+                ),
+            });
+        }
+        if let Some(h) = self
+            .heading_hypotheses_deg
+            .iter()
+            .find(|h| !(h.is_finite() && h.abs() <= 180.0))
+        {
+            return Err(FusionError::InvalidConfig {
+                field: "heading_hypotheses_deg",
+                reason: format!("every entry must be within [-180, 180], got {h}"),
+            });
+        }
+        if !(self.heading_offset_deg.is_finite() && self.heading_offset_deg.abs() <= 180.0) {
+            return Err(FusionError::InvalidConfig {
+                field: "heading_offset_deg",
+                reason: format!(
+                    "must be within [-180, 180], got {}",
+                    self.heading_offset_deg
+                ),
+            });
+        }
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(FusionError::InvalidConfig {

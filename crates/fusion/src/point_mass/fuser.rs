@@ -44,7 +44,10 @@ impl PointMassFilter {
             return None;
         }
         self.t = step.t;
-        self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
+        self.pdr += angle::step_displacement(
+            step.length * self.cfg.step_scale,
+            step.heading + self.cfg.heading_offset_deg.to_radians(),
+        );
         if !self.initialised {
             return None;
         }

@@ -85,6 +85,9 @@ impl PointMassFilter {
         let n = self.prob.len() as f64;
         let n_active = (w * (y1 - y0 + 1)) as f64;
         let sum = sum.unwrap_or_else(|| self.active_total());
+        if sum.is_finite() && sum > 0.0 {
+            self.log_evidence += sum.ln();
+        }
         let floor = self.floor;
         // Whether some cell is clearly above the floor (the maximum compared with 1.5 floor,
         // without the maximum's dependency chain).

@@ -63,12 +63,14 @@
 //! hypotheses, normalisation, the active window, the blur, the weighing pass), `mode` (the
 //! mode search and the estimate), `gap` (the coverage-gap raster), `fuser` (the step and
 //! Wi-Fi likelihoods behind [`Fuser`]), `smoother` (forward-backward smoothing of a whole
-//! walk on the lattice, [`PointMassFilter::smooth_walk`]) and the tests.
+//! walk on the lattice, [`PointMassFilter::smooth_walk`]), `mixture` (one lattice per PDR
+//! heading-bias hypothesis, weighed by evidence, [`PointMassMixture`]) and the tests.
 
 mod config;
 mod fuser;
 mod gap;
 mod lattice;
+mod mixture;
 mod mode;
 mod smoother;
 #[cfg(test)]
@@ -84,6 +86,7 @@ use crate::{BuildContext, FusionError, InputGuard};
 
 pub use config::PointMassConfig;
 use gap::GapRaster;
+pub use mixture::{MAX_HEADING_HYPOTHESES, PointMassMixture};
 pub use smoother::{MAX_STORED_CELLS, SmoothError};
 
 /// Most cells the lattice may have.
@@ -116,6 +119,8 @@ pub struct PointMassFilter {
     mode: Option<usize>,
     pdr: Vector2,
     pending_drift: f64,
+    /// Log of the inputs' marginal likelihood so far ([`PointMassFilter::log_evidence`]).
+    log_evidence: f64,
     initialised: bool,
     reporting: bool,
     t: TimestampMs,
@@ -180,6 +185,7 @@ impl PointMassFilter {
             mode: None,
             pdr: Vector2::zeros(),
             pending_drift: 0.0,
+            log_evidence: 0.0,
             initialised: false,
             reporting: false,
             t: 0,
@@ -212,6 +218,15 @@ impl PointMassFilter {
             ctx.start,
         )?
         .with_trails(ctx.trails.clone()))
+    }
+
+    /// The log of the marginal likelihood of the inputs taken so far: the sum of the logs of
+    /// each input's weighted total (the probability before it summing to 1). Comparable
+    /// between filters of the same lattice and likelihoods that differ in a PDR hypothesis
+    /// (heading offset, step scale), which is how [`PointMassMixture`](super::point_mass)
+    /// weighs them.
+    pub fn log_evidence(&self) -> f64 {
+        self.log_evidence
     }
 
     /// Adds the training trails ([`crate::trails`]): with `trail_sd_m > 0`, each step weighs

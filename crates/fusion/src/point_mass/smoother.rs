@@ -88,6 +88,17 @@ impl PointMassFilter {
         steps: &[StepEvent],
         fixes: &[WifiObservation],
     ) -> Result<Vec<Estimate>, SmoothError> {
+        self.smooth_walk_with_evidence(steps, fixes)
+            .map(|(track, _)| track)
+    }
+
+    /// [`PointMassFilter::smooth_walk`] with the walk's log evidence (the forward run's
+    /// [`PointMassFilter::log_evidence`] after the last input).
+    pub fn smooth_walk_with_evidence(
+        self,
+        steps: &[StepEvent],
+        fixes: &[WifiObservation],
+    ) -> Result<(Vec<Estimate>, f64), SmoothError> {
         let mut forward = self;
         let mut snapshots: Vec<Snapshot> = Vec::with_capacity(steps.len() + fixes.len());
         let mut stored = 0usize;
@@ -113,8 +124,9 @@ impl PointMassFilter {
             }
             snapshots.push(snapshot);
         }
+        let evidence = forward.log_evidence;
         if !any_fix || snapshots.is_empty() {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), evidence));
         }
         // The backward likelihood, on the forward filter's lattice (its walls, gaps and
         // guard state are what the inputs were weighed with); uniform after the last input.
@@ -145,7 +157,7 @@ impl PointMassFilter {
             }
         }
         out.reverse();
-        Ok(out)
+        Ok((out, evidence))
     }
 
     /// The active window's cells (as `f32`) and the background, after input `applied`.

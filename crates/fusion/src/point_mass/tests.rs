@@ -377,3 +377,79 @@ fn the_last_smoothed_estimate_is_the_forward_filters() {
     let (a, b) = (track.last().unwrap(), forward.estimate().unwrap());
     assert!((a.position - b.position).norm() < 0.5, "{a:?} vs {b:?}");
 }
+
+#[test]
+fn a_mixture_of_one_hypothesis_is_the_filter() {
+    let (steps, fixes) = l_walk();
+    let cfg = PointMassConfig::default();
+    let ctx = crate::BuildContext::default();
+    let mut filter = PointMassFilter::from_context(&cfg, &ctx).unwrap();
+    let mut mixture = PointMassMixture::from_context(&cfg, &ctx).unwrap();
+    for input in crate::replay::merged(&steps, &fixes) {
+        match input {
+            crate::replay::FusionInput::Step(i) => {
+                filter.on_step(&steps[i]);
+                mixture.on_step(&steps[i]);
+            }
+            crate::replay::FusionInput::Wifi(j) => {
+                filter.on_wifi(&fixes[j]);
+                mixture.on_wifi(&fixes[j]);
+            }
+        }
+        assert_eq!(
+            filter.estimate().map(|e| e.position),
+            mixture.estimate().map(|e| e.position)
+        );
+    }
+    assert_eq!(mixture.weights(), vec![1.0]);
+    let smoothed = |m: PointMassMixture| m.smooth_walk(&steps, &fixes).unwrap();
+    let one = PointMassFilter::from_context(&cfg, &ctx).unwrap();
+    let a: Vec<Point2> = one
+        .smooth_walk(&steps, &fixes)
+        .unwrap()
+        .iter()
+        .map(|e| e.position)
+        .collect();
+    let b: Vec<Point2> = smoothed(PointMassMixture::from_context(&cfg, &ctx).unwrap())
+        .iter()
+        .map(|e| e.position)
+        .collect();
+    assert_eq!(a, b);
+}
+
+#[test]
+fn the_walls_pick_the_heading_hypothesis() {
+    // The ring corridor walked north then east while PDR reports every heading 8 degrees
+    // short: only the +8 hypothesis keeps the track inside the 3 m corridor.
+    let cfg = PointMassConfig {
+        heading_hypotheses_deg: vec![-8.0, 0.0, 8.0],
+        ..PointMassConfig::default()
+    };
+    let ctx = crate::BuildContext {
+        walkable: Some(ring_plan()),
+        ..crate::BuildContext::default()
+    };
+    let mut f = PointMassMixture::from_context(&cfg, &ctx).unwrap();
+    let bias = 8f64.to_radians();
+    let mut truth = Point2::new(1.5, 5.0);
+    let mut t = 0;
+    f.on_wifi(&fix(t, truth.x + 3.0, truth.y));
+    for k in 0..90 {
+        t += 500;
+        let heading = if k < 48 {
+            0.0
+        } else {
+            std::f64::consts::FRAC_PI_2
+        };
+        truth += angle::step_displacement(0.7, heading);
+        f.on_step(&step(t, heading - bias));
+        if k % 6 == 5 {
+            f.on_wifi(&fix(t, truth.x + 3.0, truth.y - 3.0));
+        }
+    }
+    let w = f.weights();
+    assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    assert!(w[2] > 0.9, "weights {w:?}");
+    let p = f.estimate().unwrap().position;
+    assert!((p - truth).norm() < 3.0, "estimate {p:?} truth {truth:?}");
+}
