@@ -25,7 +25,9 @@
 //! and any scheme can start from the robust average of the fixes taken while the walker
 //! stood still ([`static_start::StaticStart`], paper 001 §3.2). `pmf` can also weigh its
 //! hypotheses by where training walks went ([`trails`], wipdr's own; measured without gain on
-//! the ILC floors, off by default).
+//! the ILC floors, off by default) and run one lattice per constant PDR heading bias, weighed by
+//! evidence ([`point_mass::PointMassMixture`], off by default). Every scheme's config has a
+//! `paper()` preset ([`SchemeConfig::paper_for`]) beside its tuned default.
 //!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free

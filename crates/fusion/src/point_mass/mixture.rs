@@ -87,6 +87,10 @@ impl PointMassMixture {
         steps: &[StepEvent],
         fixes: &[WifiObservation],
     ) -> Result<Vec<Estimate>, SmoothError> {
+        if self.components.len() == 1 {
+            let only = self.components.into_iter().next();
+            return only.map_or(Ok(Vec::new()), |c| c.smooth_walk(steps, fixes));
+        }
         let mut tracks = Vec::with_capacity(self.components.len());
         let mut evidence = Vec::with_capacity(self.components.len());
         for c in self.components {
@@ -181,6 +185,9 @@ impl Fuser for PointMassMixture {
     }
 
     fn estimate(&self) -> Option<Estimate> {
+        if let [only] = self.components.as_slice() {
+            return only.estimate();
+        }
         let estimates: Vec<Option<Estimate>> =
             self.components.iter().map(Fuser::estimate).collect();
         let weights = self.weights();
