@@ -431,22 +431,17 @@ fn the_walls_pick_the_heading_hypothesis() {
     };
     let mut f = PointMassMixture::from_context(&cfg, &ctx).unwrap();
     let bias = 8f64.to_radians();
-    let mut truth = Point2::new(1.5, 5.0);
-    let mut t = 0;
-    f.on_wifi(&fix(t, truth.x + 3.0, truth.y));
-    for k in 0..90 {
-        t += 500;
-        let heading = if k < 48 {
-            0.0
-        } else {
-            std::f64::consts::FRAC_PI_2
-        };
-        truth += angle::step_displacement(0.7, heading);
-        f.on_step(&step(t, heading - bias));
-        if k % 6 == 5 {
-            f.on_wifi(&fix(t, truth.x + 3.0, truth.y - 3.0));
+    let (steps, fixes, truths) = ring_walk(3.0);
+    for input in crate::replay::merged(&steps, &fixes) {
+        match input {
+            crate::replay::FusionInput::Step(i) => f.on_step(&StepEvent {
+                heading: steps[i].heading - bias,
+                ..steps[i]
+            }),
+            crate::replay::FusionInput::Wifi(j) => f.on_wifi(&fixes[j]),
         }
     }
+    let truth = *truths.last().unwrap();
     let w = f.weights();
     assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     assert!(w[2] > 0.9, "weights {w:?}");
@@ -460,23 +455,7 @@ fn smoothing_on_a_plan_places_the_walk_start_by_the_later_evidence() {
     // (the start a causal filter gets wrong). The smoothed start uses the later fixes and
     // the turn the walls pin down; the smoothed track stays in walkable space.
     let plan = ring_plan();
-    let mut truth = Point2::new(1.5, 5.0);
-    let (mut steps, mut fixes, mut truths) = (Vec::new(), Vec::new(), vec![truth]);
-    fixes.push(fix(0, truth.x + 15.0, truth.y));
-    for k in 0..90 {
-        let t = 500 * (k + 1);
-        let heading = if k < 48 {
-            0.0
-        } else {
-            std::f64::consts::FRAC_PI_2
-        };
-        truth += angle::step_displacement(0.7, heading);
-        truths.push(truth);
-        steps.push(step(t, heading));
-        if k % 6 == 5 {
-            fixes.push(fix(t, truth.x + 3.0, truth.y - 3.0));
-        }
-    }
+    let (steps, fixes, truths) = ring_walk(15.0);
     let new = || PointMassFilter::new(PointMassConfig::default(), Some(plan.clone()), None, None);
     let track = new().unwrap().smooth_walk(&steps, &fixes).unwrap();
     assert_eq!(track.len(), steps.len() + fixes.len());
@@ -493,4 +472,29 @@ fn smoothing_on_a_plan_places_the_walk_start_by_the_later_evidence() {
             e.position
         );
     }
+}
+
+/// The ring corridor of [`ring_plan`] walked north from (1.5, 5) for 48 steps, then east (90
+/// steps of 0.7 m, 0.5 s apart): the steps, the fixes (the first `first_offset_m` east of the
+/// start, then one every 6 steps 3 m east and 3 m south of the truth) and the truth after
+/// each step (the start first).
+fn ring_walk(first_offset_m: f64) -> (Vec<StepEvent>, Vec<WifiObservation>, Vec<Point2>) {
+    let mut truth = Point2::new(1.5, 5.0);
+    let (mut steps, mut fixes, mut truths) = (Vec::new(), Vec::new(), vec![truth]);
+    fixes.push(fix(0, truth.x + first_offset_m, truth.y));
+    for k in 0..90 {
+        let t = 500 * (k + 1);
+        let heading = if k < 48 {
+            0.0
+        } else {
+            std::f64::consts::FRAC_PI_2
+        };
+        truth += angle::step_displacement(0.7, heading);
+        truths.push(truth);
+        steps.push(step(t, heading));
+        if k % 6 == 5 {
+            fixes.push(fix(t, truth.x + 3.0, truth.y - 3.0));
+        }
+    }
+    (steps, fixes, truths)
 }
