@@ -13,6 +13,7 @@
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, StepEvent, TimestampMs, WifiObservation, angle};
 
+use crate::fix_error::{GainVariance, RadiusConfig};
 use crate::{Diagnostics, Estimate, Fuser, FusionError, InputGuard};
 
 /// Parameters of `aws` (001 §3.1).
@@ -25,6 +26,9 @@ pub struct AwsConfig {
     pub w2: f64,
     /// Displacement threshold `delta_S`, metres (not given in the paper; 3 m).
     pub delta_s_m: f64,
+    /// The horizontal uncertainty of the estimate (wipdr's own; the paper gives none):
+    /// [`crate::fix_error`], the same in the default and the paper preset.
+    pub radius: RadiusConfig,
 }
 
 /// The shipped default is tuned for recorded smartphone walks (`docs/sweeps/tune-aws.toml`,
@@ -36,6 +40,7 @@ impl Default for AwsConfig {
             w1: 0.2,
             w2: 0.8,
             delta_s_m: 1.0,
+            radius: RadiusConfig::default(),
         }
     }
 }
@@ -47,6 +52,7 @@ impl AwsConfig {
             w1: 0.4,
             w2: 0.6,
             delta_s_m: 3.0,
+            radius: RadiusConfig::default(),
         }
     }
 }
@@ -59,6 +65,7 @@ pub struct AwsFuser {
     last_fused: Point2,
     t: TimestampMs,
     last_flagged: Option<bool>,
+    variance: GainVariance,
     guard: InputGuard,
 }
 
@@ -85,7 +92,13 @@ impl AwsFuser {
                 reason: format!("must be finite and > 0, got {}", cfg.delta_s_m),
             });
         }
+        cfg.radius.validate()?;
+        let mut variance = GainVariance::new(cfg.radius.clone());
+        if start.is_some() {
+            variance.start_known(0.0);
+        }
         Ok(Self {
+            variance,
             cfg,
             position: start,
             last_fused: start.unwrap_or_else(Point2::origin),
@@ -107,6 +120,7 @@ impl Fuser for AwsFuser {
         }
         if let Some(p) = &mut self.position {
             *p += angle::step_displacement(step.length, step.heading);
+            self.variance.step(step.length);
             self.t = step.t;
         }
     }
@@ -119,6 +133,7 @@ impl Fuser for AwsFuser {
         let Some(pdr) = self.position else {
             self.position = Some(obs.estimate);
             self.last_fused = obs.estimate;
+            self.variance.start();
             return;
         };
         let s_pdr = (pdr - self.last_fused).norm();
@@ -133,21 +148,22 @@ impl Fuser for AwsFuser {
             // eq. 9: PDR weighted more
             Point2::from((obs.estimate.coords * lo + pdr.coords * hi) / sum)
         };
+        let gain = if consistent { hi / sum } else { lo / sum };
+        self.variance.fix(obs.estimate - pdr, gain);
         self.last_flagged = Some(!consistent);
         self.position = Some(fused);
         self.last_fused = fused;
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.position.map(|position| {
-            Estimate::point(
-                self.t,
-                position,
-                Diagnostics {
-                    wifi_flagged: self.last_flagged,
-                    ..self.guard.diagnostics()
-                },
-            )
+        self.position.map(|position| Estimate {
+            t: self.t,
+            position,
+            covariance: Some(self.variance.covariance()),
+            diagnostics: Diagnostics {
+                wifi_flagged: self.last_flagged,
+                ..self.guard.diagnostics()
+            },
         })
     }
 }
@@ -156,6 +172,27 @@ impl Fuser for AwsFuser {
 mod tests {
     use super::*;
     use crate::synthetic::{obs_at, step};
+
+    fn variance_x(f: &AwsFuser) -> f64 {
+        f.estimate().unwrap().covariance.unwrap()[(0, 0)]
+    }
+
+    #[test]
+    fn the_radius_grows_by_dead_reckoning_and_shrinks_at_a_fix() {
+        let mut f = AwsFuser::new(AwsConfig::default(), None).unwrap();
+        f.on_wifi(&obs_at(0, 0.0, 0.0));
+        let at_fix = variance_x(&f);
+        for k in 1..=20 {
+            f.on_step(&step(500 * k, 0.7, 0.0));
+        }
+        let walked = variance_x(&f);
+        assert!(walked > at_fix, "{walked} <= {at_fix}");
+        f.on_wifi(&obs_at(10_500, 0.0, 14.0)); // consistent with the 14 m walked: weighted 0.8
+        assert!(variance_x(&f) < walked);
+        let p = f.estimate().unwrap().covariance.unwrap();
+        assert_eq!(p[(0, 1)], p[(1, 0)]);
+        assert!(p[(0, 0)] > 0.0 && p[(1, 1)] > 0.0);
+    }
 
     #[test]
     fn weights_follow_the_displacement_constraint() {

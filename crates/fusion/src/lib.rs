@@ -63,6 +63,7 @@
 pub mod aws;
 pub mod baseline;
 pub mod ekf;
+pub mod fix_error;
 pub mod kalman;
 pub mod offline;
 pub mod particle;

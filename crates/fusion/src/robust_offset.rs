@@ -21,10 +21,12 @@
 //! assert!((f.estimate().unwrap().position.x - 10.0).abs() < 1e-3);
 //! ```
 
+use nalgebra::Matrix2;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
+use crate::fix_error::{FixErrorTracker, RadiusConfig};
 use crate::{Estimate, Fuser, FusionError, InputGuard};
 
 /// Config of `rof`.
@@ -40,6 +42,10 @@ pub struct RobustOffsetConfig {
     /// Each vote is weighted by `best_distance^-quality_power` (the signal distance of the
     /// fix's best candidate: a poor match votes less); 0 weights every fix equally.
     pub quality_power: f64,
+    /// The horizontal uncertainty of the estimate: [`crate::fix_error`]'s learned Wi-Fi
+    /// variance `R` over the window's fixes (`R (4 / pi) / n`, the spatial median's
+    /// efficiency), its bias share, and the PDR growth since the latest fix.
+    pub radius: RadiusConfig,
 }
 
 impl Default for RobustOffsetConfig {
@@ -49,6 +55,7 @@ impl Default for RobustOffsetConfig {
             iterations: 50,
             step_scale: 1.0,
             quality_power: 0.0,
+            radius: RadiusConfig::default(),
         }
     }
 }
@@ -79,7 +86,7 @@ impl RobustOffsetConfig {
                 reason: format!("must be positive and finite, got {}", self.step_scale),
             });
         }
-        Ok(())
+        self.radius.validate()
     }
 }
 
@@ -134,6 +141,8 @@ pub struct RobustOffset {
     offsets: VecDeque<(Vector2, f64)>,
     offset: Option<Vector2>,
     t: TimestampMs,
+    fix_error: FixErrorTracker,
+    walked_since_fix: f64,
     guard: InputGuard,
 }
 
@@ -141,6 +150,8 @@ impl RobustOffset {
     /// A new filter (call [`RobustOffsetConfig::validate`] first for untrusted configs).
     pub fn new(cfg: RobustOffsetConfig) -> Self {
         Self {
+            fix_error: FixErrorTracker::new(&cfg.radius),
+            walked_since_fix: 0.0,
             cfg,
             pdr: Vector2::zeros(),
             offsets: VecDeque::new(),
@@ -148,6 +159,17 @@ impl RobustOffset {
             t: 0,
             guard: InputGuard::default(),
         }
+    }
+}
+
+impl RobustOffset {
+    /// The estimate's per-axis variance, m² (see [`RobustOffsetConfig::radius`]).
+    fn variance(&self) -> f64 {
+        let r = self.fix_error.variance();
+        let n = self.offsets.len().max(1) as f64;
+        r * (4.0 / std::f64::consts::PI) / n
+            + self.cfg.radius.bias_share * r
+            + self.cfg.radius.pdr_var_per_m * self.walked_since_fix
     }
 }
 
@@ -161,6 +183,7 @@ impl Fuser for RobustOffset {
             return;
         }
         self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
+        self.walked_since_fix += step.length * self.cfg.step_scale;
         self.t = step.t;
     }
 
@@ -172,6 +195,12 @@ impl Fuser for RobustOffset {
             Some(d) if self.cfg.quality_power > 0.0 => d.max(1e-3).powf(-self.cfg.quality_power),
             _ => 1.0,
         };
+        if let Some(o) = self.offset {
+            let predicted = self.variance();
+            self.fix_error
+                .observe(obs.estimate.coords - (self.pdr + o), predicted);
+        }
+        self.walked_since_fix = 0.0;
         self.offsets
             .push_back((obs.estimate.coords - self.pdr, weight));
         while self.offsets.len() > self.cfg.window {
@@ -185,8 +214,12 @@ impl Fuser for RobustOffset {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.offset
-            .map(|o| Estimate::point(self.t, Point2::from(self.pdr + o), self.guard.diagnostics()))
+        self.offset.map(|o| Estimate {
+            t: self.t,
+            position: Point2::from(self.pdr + o),
+            covariance: Some(Matrix2::identity() * self.variance()),
+            diagnostics: self.guard.diagnostics(),
+        })
     }
 }
 
@@ -194,6 +227,29 @@ impl Fuser for RobustOffset {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_radius_shrinks_as_agreeing_fixes_vote() {
+        let var = |f: &RobustOffset| f.estimate().unwrap().covariance.unwrap()[(0, 0)];
+        let fix = |t, x: f64| WifiObservation {
+            t,
+            estimate: Point2::new(x, 0.0),
+            candidates: vec![],
+            visited: 0,
+            floor: None,
+            building: None,
+        };
+        let mut f = RobustOffset::new(RobustOffsetConfig::default());
+        f.on_wifi(&fix(0, 10.0));
+        let one = var(&f);
+        for t in 1..6 {
+            f.on_wifi(&fix(t, 10.0 + (t % 2) as f64));
+        }
+        let six = var(&f);
+        assert!(six < one, "{six} >= {one}");
+        // never below the bias share of the learned Wi-Fi variance
+        assert!(six >= RobustOffsetConfig::default().radius.bias_share * f.fix_error.variance());
+    }
 
     #[test]
     fn median_ignores_a_minority_of_outliers() {

@@ -33,6 +33,7 @@
 use serde::{Deserialize, Serialize};
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
+use crate::fix_error::{GainVariance, RadiusConfig};
 use crate::{Diagnostics, Estimate, Fuser, FusionError, InputGuard, usable_candidates};
 
 /// Trust state of the chain (002 §4.3.3).
@@ -96,6 +97,9 @@ pub struct TcpfConfig {
     pub initial_state: TrustState,
     /// Start value of `lambda`.
     pub initial_lambda: f64,
+    /// The horizontal uncertainty of the estimate (wipdr's own; the paper gives none):
+    /// [`crate::fix_error`], the same in the default and the paper preset.
+    pub radius: RadiusConfig,
 }
 
 /// The shipped default is tuned for recorded smartphone walks (docs/results/papers.md):
@@ -129,6 +133,7 @@ impl TcpfConfig {
             lambda_max: 1e6,
             initial_state: TrustState::Unlocked,
             initial_lambda: 1.0,
+            radius: RadiusConfig::default(),
         }
     }
 }
@@ -174,7 +179,7 @@ impl TcpfConfig {
                 });
             }
         }
-        Ok(())
+        self.radius.validate()
     }
 }
 
@@ -190,6 +195,7 @@ pub struct Tcpf {
     state: TrustState,
     t: TimestampMs,
     last_trusted: Option<bool>,
+    variance: GainVariance,
     guard: InputGuard,
 }
 
@@ -197,7 +203,12 @@ impl Tcpf {
     /// Builds TCPF; `start` initialises at a known position.
     pub fn new(cfg: TcpfConfig, start: Option<Point2>) -> Result<Self, FusionError> {
         cfg.validate()?;
+        let mut variance = GainVariance::new(cfg.radius.clone());
+        if start.is_some() {
+            variance.start_known(0.0);
+        }
         Ok(Self {
+            variance,
             alpha: cfg.alpha(),
             position: start,
             anchor: start.unwrap_or_else(Point2::origin),
@@ -251,6 +262,7 @@ impl Fuser for Tcpf {
             let d = angle::step_displacement(step.length, step.heading);
             *p += d;
             self.pdr_since_anchor += d;
+            self.variance.step(step.length);
             // eq. 17, accumulated per step
             self.lambda = (self.lambda + self.alpha * step.length).min(self.cfg.lambda_max);
             self.t = step.t;
@@ -266,6 +278,7 @@ impl Fuser for Tcpf {
             self.position = Some(obs.estimate);
             self.anchor = obs.estimate;
             self.pdr_since_anchor = Vector2::zeros();
+            self.variance.start();
             return;
         };
         let trusted = self.in_trusted_area(obs.estimate);
@@ -287,12 +300,16 @@ impl Fuser for Tcpf {
         };
         let wsum: f64 = selected.iter().map(|(_, w)| w).sum();
         let fused = if selected.is_empty() {
+            self.variance.fix(obs.estimate - pdr, 0.0);
             pdr
         } else {
             let n = selected.len() as f64;
             let wifi = selected.iter().fold(Vector2::zeros(), |acc, (p, w)| {
                 acc + p.coords * if wsum > 0.0 { w / wsum } else { 1.0 / n }
             });
+            // the gain of eq. 16 on the averaged candidates
+            self.variance
+                .fix(wifi - pdr.coords, lambda_prior / (1.0 + lambda_prior));
             // eq. 16
             Point2::from((pdr.coords + wifi * lambda_prior) / (1.0 + lambda_prior))
         };
@@ -309,17 +326,16 @@ impl Fuser for Tcpf {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        self.position.map(|position| {
-            Estimate::point(
-                self.t,
-                position,
-                Diagnostics {
-                    trust_state: Some(self.state),
-                    tc_lambda: Some(self.lambda),
-                    wifi_flagged: self.last_trusted.map(|t| !t),
-                    ..self.guard.diagnostics()
-                },
-            )
+        self.position.map(|position| Estimate {
+            t: self.t,
+            position,
+            covariance: Some(self.variance.covariance()),
+            diagnostics: Diagnostics {
+                trust_state: Some(self.state),
+                tc_lambda: Some(self.lambda),
+                wifi_flagged: self.last_trusted.map(|t| !t),
+                ..self.guard.diagnostics()
+            },
         })
     }
 }
@@ -329,6 +345,21 @@ mod tests {
     use super::*;
     use crate::synthetic::{obs_at, step};
     use proptest::prelude::*;
+
+    #[test]
+    fn the_radius_grows_by_dead_reckoning_and_shrinks_at_a_fix() {
+        let var = |f: &Tcpf| f.estimate().unwrap().covariance.unwrap()[(0, 0)];
+        let mut f = Tcpf::new(TcpfConfig::default(), None).unwrap();
+        f.on_wifi(&obs_at(0, 0.0, 0.0));
+        let at_fix = var(&f);
+        for k in 1..=20 {
+            f.on_step(&step(500 * k, 0.7, 0.0));
+        }
+        let walked = var(&f);
+        assert!(walked > at_fix, "{walked} <= {at_fix}");
+        f.on_wifi(&obs_at(10_500, 0.0, 14.0)); // a trusted point after 14 m: lambda > 0
+        assert!(var(&f) < walked);
+    }
 
     #[test]
     fn trusted_point_resets_lambda_and_locks() {
