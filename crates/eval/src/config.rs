@@ -96,6 +96,8 @@ impl Default for EvalConfig {
             radio_map,
             matcher: positioner.matcher,
             map_matching: positioner.map_matching,
+            // the handling gate on (the papers' preset has none)
+            pdr: positioner.pdr,
             propagation: Some(PropagationConfig {
                 min_predicted_dbm: -85.0,
                 ..PropagationConfig::default()

@@ -3,7 +3,8 @@
 //! steps. Such handling rotates the phone fast in every axis (mean |omega| of 2-7 rad/s over
 //! seconds in the IPIN 2023 logfiles, whose first minute is handling), while a phone carried
 //! in front of a walker turns at well under 1 rad/s. A step is rejected while the smoothed
-//! rotation rate exceeds [`HandlingConfig::max_rotation_rad_s`] (off by default).
+//! rotation rate exceeds [`HandlingConfig::max_rotation_rad_s`] (3 rad/s by default;
+//! [`HandlingConfig::off`] in the papers' preset, which have no such gate).
 
 use serde::{Deserialize, Serialize};
 use wipdr_core::TimestampMs;
@@ -13,11 +14,13 @@ use wipdr_core::TimestampMs;
 #[serde(default, deny_unknown_fields)]
 pub struct HandlingConfig {
     /// Largest smoothed rotation rate (norm of the gyroscope vector, rad/s) at which a
-    /// detected step is kept; `None` (default) turns the gate off. Measured
-    /// (`docs/results/ipin.md`): 1.5 removes the IPIN logfiles' 33-66 handling steps per
-    /// walk down to 0-4 and keeps their walking steps (PDR from the true start unchanged),
-    /// but it also drops walking steps of some ILC walks (PDR 3.41 -> 3.62 m pooled), so it
-    /// is off by default and on in `docs/configs/ipin.toml`.
+    /// detected step is kept; `None` turns the gate off (the papers' preset,
+    /// [`HandlingConfig::off`]). Measured (`docs/results/ipin.md`, `docs/results/accuracy.md`
+    /// "Session 9"): 1.5 removes the IPIN logfiles' 33-66 handling steps per walk down to 0-4
+    /// and keeps their walking steps, but also drops walking steps of some ILC walks (PDR
+    /// 3.04 -> 3.21 m pooled at 2.0); the default 3.0 leaves every ILC figure as it was
+    /// without the gate and still takes `pmf` 10.61 -> 8.17 m on the IPIN walks (`ekf` 8.05
+    /// -> 7.91).
     pub max_rotation_rad_s: Option<f64>,
     /// Time constant of the smoothing, seconds.
     pub tau_s: f64,
@@ -26,8 +29,18 @@ pub struct HandlingConfig {
 impl Default for HandlingConfig {
     fn default() -> Self {
         Self {
-            max_rotation_rad_s: None,
+            max_rotation_rad_s: Some(3.0),
             tau_s: 1.0,
+        }
+    }
+}
+
+impl HandlingConfig {
+    /// No gate: every detected step is kept (the papers' PDR).
+    pub fn off() -> Self {
+        Self {
+            max_rotation_rad_s: None,
+            ..Self::default()
         }
     }
 }

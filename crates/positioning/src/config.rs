@@ -48,11 +48,13 @@ pub struct PositionerConfig {
 impl Default for PositionerConfig {
     /// The best measured configuration (`docs/results/accuracy.md`): the AP-matching index
     /// over each scan's 4 strongest APs without an RSSI threshold around the shared-AP WKNN,
-    /// and map matching on. [`PositionerConfig::paper`] has the papers' settings.
+    /// map matching on, and the PDR's handling gate at 3 rad/s. [`PositionerConfig::paper`] has
+    /// the papers' settings.
     fn default() -> Self {
         Self {
             matcher: recommended_matcher(),
             map_matching: true,
+            pdr: PdrConfig::default(),
             scheme: SchemeConfig::Ekf(wipdr_fusion::EkfConfig::default()),
             ..Self::paper()
         }
@@ -75,13 +77,17 @@ pub fn recommended_matcher() -> MatcherConfig {
 }
 
 impl PositionerConfig {
-    /// The papers' settings: WKNN (k = 5, shared-AP distance), no map matching, `ekf` with
-    /// the papers' values ([`wipdr_fusion::EkfConfig::paper`]).
+    /// The papers' settings: WKNN (k = 5, shared-AP distance), no map matching, no handling
+    /// gate ([`wipdr_pdr::handling::HandlingConfig::off`]), `ekf` with the papers' values
+    /// ([`wipdr_fusion::EkfConfig::paper`]).
     pub fn paper() -> Self {
         Self {
             matcher: MatcherConfig::default(),
             query: default_query(),
-            pdr: PdrConfig::default(),
+            pdr: PdrConfig {
+                handling: wipdr_pdr::handling::HandlingConfig::off(),
+                ..PdrConfig::default()
+            },
             scheme: SchemeConfig::Ekf(wipdr_fusion::EkfConfig::paper()),
             map_matching: false,
             static_start: None,

@@ -4,6 +4,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::FusionError;
 
+/// `pmf`'s default [`crate::fix_error::RadiusConfig::bias_share`]: smaller than the other
+/// schemes' (its lattice already holds a second mode's weight and `sd_floor_m`).
+pub const PMF_BIAS_SHARE: f64 = 0.2;
+
 /// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`,
 /// `docs/sweeps/pmf-session7.toml`; docs/results/accuracy.md), so they are optimistic there;
 /// [`PointMassConfig::paper`] keeps the settings before the session-7 sweep.
@@ -48,6 +52,10 @@ pub struct PointMassConfig {
     /// inside the 95 % radius at 92 % of the five ILC floors' waypoints (81.6 % without;
     /// `docs/results/accuracy.md`). Moves no estimate. wipdr's own (no paper value).
     pub sd_floor_m: f64,
+    /// The reported covariance also keeps `radius.bias_share` of the Wi-Fi variance learned
+    /// from the fixes' residuals ([`crate::fix_error`]): where the fixes are worse than on the
+    /// ILC floors (the IPIN building), the radius grows with them. Moves no estimate.
+    pub radius: crate::fix_error::RadiusConfig,
     /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
     /// matcher's distance unit; 0: every fix trusted alike).
     pub quality_distance: f64,
@@ -91,6 +99,10 @@ impl Default for PointMassConfig {
             recovery: 1e-6,
             estimate_radius_m: 10.0,
             sd_floor_m: 2.5,
+            radius: crate::fix_error::RadiusConfig {
+                bias_share: PMF_BIAS_SHARE,
+                ..Default::default()
+            },
             quality_distance: 0.0,
             quality_softness: 5.0,
             mode_radius_m: 5.0,
@@ -198,6 +210,6 @@ impl PointMassConfig {
                 });
             }
         }
-        Ok(())
+        self.radius.validate()
     }
 }

@@ -1,6 +1,7 @@
 //! The step likelihood (walkable class, trails) and the Wi-Fi likelihood (robust, coverage
 //! aware) of `pmf`, behind [`Fuser`].
 
+use nalgebra::Matrix2;
 use wipdr_core::{Point2, StepEvent, Vector2, WifiObservation, angle};
 
 use super::{NO_CELL, PointMassFilter};
@@ -21,14 +22,11 @@ impl Fuser for PointMassFilter {
     }
 
     fn estimate(&self) -> Option<Estimate> {
-        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
-            return None;
-        }
-        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
-        let p = Point2::from(o + self.pdr);
-        let mut covariance = self.spread_about(o);
+        let (p, mut covariance) = self.lattice_estimate()?;
+        covariance +=
+            Matrix2::identity() * (self.cfg.radius.bias_share * self.fix_error.variance());
         crate::kalman::enforce_symmetric_pd(&mut covariance);
-        (p.x.is_finite() && p.y.is_finite()).then(|| Estimate {
+        Some(Estimate {
             covariance: Some(covariance),
             ..Estimate::point(self.t, p, self.guard.diagnostics())
         })
@@ -36,6 +34,16 @@ impl Fuser for PointMassFilter {
 }
 
 impl PointMassFilter {
+    /// The estimate and the lattice's own covariance (without the learned bias share).
+    fn lattice_estimate(&self) -> Option<(Point2, Matrix2<f64>)> {
+        if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
+            return None;
+        }
+        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
+        let p = Point2::from(o + self.pdr);
+        (p.x.is_finite() && p.y.is_finite()).then(|| (p, self.spread_about(o)))
+    }
+
     /// A step: the drift blur, then the walls' (and trails') weights at the new position.
     /// `Some(blurs)` (how many blurs the drift made) when the lattice took it, `None` when the
     /// guard refused it or the lattice is not laid yet.
@@ -80,6 +88,9 @@ impl PointMassFilter {
             {
                 return false;
             }
+        }
+        if let Some((p, cov)) = self.lattice_estimate() {
+            self.fix_error.observe(obs.estimate - p, 0.5 * cov.trace());
         }
         let total = self.weigh_fix(obs);
         self.normalise(Some(total));

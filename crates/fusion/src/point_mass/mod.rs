@@ -123,6 +123,8 @@ pub struct PointMassFilter {
     log_evidence: f64,
     initialised: bool,
     reporting: bool,
+    /// The fixes' error variance learned from their residuals (the reported radius).
+    fix_error: crate::fix_error::FixErrorTracker,
     t: TimestampMs,
     guard: InputGuard,
 }
@@ -168,6 +170,7 @@ impl PointMassFilter {
             g.mean_class_weight(cfg.unit_likelihood, cfg.outside_likelihood)
         });
         let mut f = Self {
+            fix_error: crate::fix_error::FixErrorTracker::new(&cfg.radius),
             cfg,
             step_background,
             walkable,
