@@ -75,12 +75,12 @@ pub struct Summary {
     #[serde(default)]
     pub floor_hit_rate: Option<f64>,
     /// EvAAL metric: 75th percentile of 2D error + 15 m x |floor error|, metres; `None`
-    /// without scored points (and in sweep result files, which keep the 2D figures only).
+    /// without scored points or without floors.
     #[serde(default)]
     pub evaal: Option<f64>,
     /// Share of the scored points with an uncertainty whose true position lies inside the
     /// estimate's 95 % radius ([`crate::scoring::RADIUS_95_PER_SD`] x `sd_m`): near 0.95 for
-    /// an honest radius; `None` where the scheme reports no uncertainty (and in sweep files).
+    /// an honest radius; `None` where the scheme reports no uncertainty.
     #[serde(default)]
     pub radius_95_coverage: Option<f64>,
 }

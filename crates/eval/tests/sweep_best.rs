@@ -148,3 +148,32 @@ fn merged_resumed_and_uninterrupted_runs_have_one_identity() {
     }
     assert_eq!(big.check(1_000_000_000).expect("within"), 1_000_000_000);
 }
+
+#[test]
+fn the_evaal_objective_is_the_p75_on_walks_without_floors() {
+    let floors = [fixture_floor()];
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("r.csv");
+    let s: SweepSpec = toml::from_str(
+        r#"
+        scheme = "ekf"
+        objective = "evaal"
+        [grid]
+        "fuser.r_wifi_m2" = [16.0, 150.0]
+        "#,
+    )
+    .expect("sweep spec parses");
+    let o = run(&s, &floors, &out, SweepOptions::default()).expect("the sweep runs");
+    assert_eq!(o.rows.len(), 2);
+    for r in &o.rows {
+        // floor error 0 on every fixture waypoint: EvAAL = the 2D p75 (to the file's 6 decimals)
+        let evaal = r.summary.evaal.expect("an EvAAL figure");
+        assert!(
+            (evaal - r.summary.p75).abs() < 1e-5,
+            "{evaal} vs {}",
+            r.summary.p75
+        );
+        assert_eq!(r.objective, evaal);
+        assert!(r.summary.p75 > 0.0);
+    }
+}

@@ -11,7 +11,7 @@
 //!
 //! ```toml
 //! scheme = "aekf"          # the scheme every config runs
-//! objective = "mean"       # mean | rms | p95: what "best" minimises
+//! objective = "mean"       # mean | rms | p95 | evaal (IPIN's score): what "best" minimises
 //!
 //! [grid]                   # every combination (a cartesian product)
 //! "matcher.k" = [3, 5, 8]
@@ -35,7 +35,8 @@
 //! ## Results file (CSV) and run identity
 //!
 //! One row per finished config: `index, id, config_hash, <param columns...>, count, skipped,
-//! mean, rms, p50, p75, p95, max, objective`. A row is appended and flushed as soon as its
+//! mean, rms, p50, p75, p95, max, floor_hit_rate, evaal, radius_95_coverage, objective` (the
+//! three optional figures empty where the data has no floors or the scheme no radius). A row is appended and flushed as soon as its
 //! config finishes, so a sweep that is stopped keeps all it finished; `resume` skips configs
 //! whose index is already in the file (a torn last line is dropped). When a run completes, the
 //! file is rewritten sorted by index, so an interrupted-and-resumed sweep ends with the same
@@ -220,6 +221,46 @@ mod tests {
             std::fs::read_to_string(RunIdentity::sidecar_path(&merged)).unwrap(),
             std::fs::read_to_string(RunIdentity::sidecar_path(&path)).unwrap()
         );
+    }
+
+    #[test]
+    fn floor_evaal_and_radius_figures_survive_the_results_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        let s = spec();
+        let id = identity(&s, None);
+        let pts = s.expand().unwrap();
+        let with_floors = Summary {
+            count: 4,
+            mean: 2.0,
+            p75: 3.0,
+            floor_hit_rate: Some(0.75),
+            evaal: Some(18.0),
+            radius_95_coverage: Some(0.5),
+            ..Default::default()
+        };
+        let without = Summary {
+            count: 4,
+            mean: 2.5,
+            ..Default::default()
+        };
+        {
+            let (f, _) = ResultsFile::open(&path, &id, false).unwrap();
+            let row = f
+                .append(&pts[0], "h0", &with_floors, Objective::Evaal)
+                .unwrap();
+            assert_eq!(row.objective, 18.0);
+            let row = f.append(&pts[1], "h1", &without, Objective::Evaal).unwrap();
+            assert!(row.objective.is_infinite());
+        }
+        let (_, rows) = ResultsFile::open(&path, &id, true).unwrap();
+        assert_eq!(rows[0].summary, with_floors);
+        assert_eq!(rows[0].objective, 18.0);
+        assert_eq!(rows[1].summary.evaal, None);
+        assert_eq!(rows[1].summary.floor_hit_rate, None);
+        assert!(rows[1].objective.is_infinite());
+        let spec: SweepSpec = toml::from_str("scheme = \"ekf\"\nobjective = \"evaal\"").unwrap();
+        assert_eq!(spec.objective, Objective::Evaal);
     }
 
     #[test]

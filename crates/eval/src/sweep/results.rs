@@ -31,7 +31,7 @@ pub struct SweepRow {
     pub objective: f64,
 }
 
-const FIGURES: [&str; 9] = [
+const FIGURES: [&str; 12] = [
     "count",
     "skipped",
     "mean",
@@ -40,8 +40,16 @@ const FIGURES: [&str; 9] = [
     "p75",
     "p95",
     "max",
+    "floor_hit_rate",
+    "evaal",
+    "radius_95_coverage",
     "objective",
 ];
+
+/// An optional figure's cell: empty when the summary has none.
+fn optional_cell(v: Option<f64>) -> String {
+    v.map(|v| format!("{v:.6}")).unwrap_or_default()
+}
 
 /// Leading columns: `index, id, config_hash`.
 const LEAD: usize = 3;
@@ -214,6 +222,9 @@ fn row_fields(r: &SweepRow) -> Vec<String> {
         format!("{:.6}", s.p75),
         format!("{:.6}", s.p95),
         format!("{:.6}", s.max),
+        optional_cell(s.floor_hit_rate),
+        optional_cell(s.evaal),
+        optional_cell(s.radius_95_coverage),
         format!("{:.6}", r.objective),
     ]);
     f
@@ -289,6 +300,13 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
                 )
             })
         };
+        let optional = |j: usize| -> Result<Option<f64>, SweepError> {
+            if fields[j].is_empty() {
+                Ok(None)
+            } else {
+                num(j).map(Some)
+            }
+        };
         let base = LEAD + n_params;
         let summary = Summary {
             count: int(base)?,
@@ -299,9 +317,9 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             p75: num(base + 5)?,
             p95: num(base + 6)?,
             max: num(base + 7)?,
-            floor_hit_rate: None,
-            evaal: None,
-            radius_95_coverage: None,
+            floor_hit_rate: optional(base + 8)?,
+            evaal: optional(base + 9)?,
+            radius_95_coverage: optional(base + 10)?,
         };
         rows.push(SweepRow {
             index: int(0)?,
@@ -309,7 +327,7 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             config_hash: fields[2].clone(),
             params: fields[LEAD..base].to_vec(),
             summary,
-            objective: num(base + 8)?,
+            objective: num(base + 11)?,
         });
     }
     Ok(rows)

@@ -29,10 +29,15 @@ pub enum Objective {
     Rms,
     /// 95th percentile.
     P95,
+    /// The EvAAL metric (75th percentile of 2D error + 15 m x |floor error|, the IPIN
+    /// competition's score); on walks without floors (floor error 0) it is the 75th
+    /// percentile of the 2D error.
+    Evaal,
 }
 
 impl Objective {
-    /// The objective's value of a summary (infinite when nothing was scored).
+    /// The objective's value of a summary (infinite when nothing was scored, and for
+    /// [`Objective::Evaal`] when the summary has no EvAAL figure).
     pub fn of(self, s: &Summary) -> f64 {
         if s.count == 0 {
             return f64::INFINITY;
@@ -41,6 +46,7 @@ impl Objective {
             Objective::Mean => s.mean,
             Objective::Rms => s.rms,
             Objective::P95 => s.p95,
+            Objective::Evaal => s.evaal.unwrap_or(f64::INFINITY),
         }
     }
 }
