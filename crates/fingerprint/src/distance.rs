@@ -83,14 +83,27 @@ impl Default for Plgd {
 pub struct SharedAp {
     /// Weight of the non-shared fraction (findings.md: 40-80).
     pub lambda: f32,
+    /// Largest common RSSI offset (dB) removed before the mean difference is taken: the
+    /// mean of `a - b` over the shared APs, clamped to `[-max_offset_db, max_offset_db]`, is
+    /// subtracted from every difference (a phone's gain differs from the survey phones';
+    /// wipdr's own, measured in `docs/results/accuracy.md` "Session 9"). 0 (default): off.
+    #[serde(default)]
+    pub max_offset_db: f32,
 }
+
+/// Shared APs below which [`SharedAp::max_offset_db`] removes no offset (a mean difference over
+/// fewer is mostly the position's, not the phone's).
+pub const SHARED_AP_MIN_FOR_OFFSET: u32 = 6;
 
 /// Mean-difference term of [`SharedAp`] when nothing is shared, dB.
 pub const SHARED_AP_NONE: f32 = 100.0;
 
 impl Default for SharedAp {
     fn default() -> Self {
-        Self { lambda: 60.0 }
+        Self {
+            lambda: 60.0,
+            max_offset_db: 0.0,
+        }
     }
 }
 
@@ -218,11 +231,27 @@ impl Distance for Plgd {
 
 impl Distance for SharedAp {
     fn eval(&self, a: &[f32], b: &[f32], null: f32) -> f32 {
+        let offset = if self.max_offset_db > 0.0 {
+            let (mut diff, mut n) = (0f32, 0u32);
+            for (&q, &r) in a.iter().zip(b) {
+                if q > null && r > null {
+                    diff += q - r;
+                    n += 1;
+                }
+            }
+            if n >= SHARED_AP_MIN_FOR_OFFSET {
+                (diff / n as f32).clamp(-self.max_offset_db, self.max_offset_db)
+            } else {
+                0.0
+            }
+        } else {
+            0.0
+        };
         let (mut sum, mut shared, mut union) = (0f32, 0u32, 0u32);
         for (&q, &r) in a.iter().zip(b) {
             let (hq, hr) = (q > null, r > null);
             if hq && hr {
-                sum += (q - r).abs();
+                sum += (q - r - offset).abs();
                 shared += 1;
             }
             if hq || hr {
@@ -451,15 +480,52 @@ mod tests {
         assert_eq!(Sorensen.eval(&a, &b, 0.0), 5.0 / 11.0);
         assert_eq!(Sorensen.eval(&[0.0], &[0.0], 0.0), 0.0);
         assert!(Neyman.eval(&a, &b, 0.0) > 1000.0); // AP 0 unheard by the reference
-        let s = SharedAp { lambda: 10.0 }.eval(&a, &b, 0.0);
+        let s = SharedAp {
+            lambda: 10.0,
+            ..SharedAp::default()
+        }
+        .eval(&a, &b, 0.0);
         assert!((s - (2.0 + 10.0 / 3.0)).abs() < 1e-6, "{s}");
         assert_eq!(
-            SharedAp { lambda: 10.0 }.eval(&[1.0, 0.0], &[0.0, 1.0], 0.0),
+            SharedAp {
+                lambda: 10.0,
+                ..SharedAp::default()
+            }
+            .eval(&[1.0, 0.0], &[0.0, 1.0], 0.0),
             SHARED_AP_NONE + 10.0
         );
         let p = Plgd::default();
         assert_eq!(p.eval(&a, &a, 0.0), 0.0);
         assert!(p.eval(&a, &b, 0.0) > p.eval(&a, &a, 0.0));
+    }
+
+    #[test]
+    fn the_shared_ap_offset_removes_a_phones_gain_only_with_enough_shared_aps() {
+        let reference = [30.0, 25.0, 20.0, 15.0, 10.0, 5.0, 0.0];
+        let louder: Vec<f32> = reference
+            .iter()
+            .map(|&v| if v > 0.0 { v + 8.0 } else { 0.0 })
+            .collect();
+        let plain = SharedAp::default();
+        let offset = SharedAp {
+            max_offset_db: 10.0,
+            ..SharedAp::default()
+        };
+        assert!((plain.eval(&louder, &reference, 0.0) - 8.0).abs() < 1e-5);
+        assert!(offset.eval(&louder, &reference, 0.0).abs() < 1e-5);
+        // clamped: a 15 dB gain leaves 5 dB
+        let much: Vec<f32> = reference
+            .iter()
+            .map(|&v| if v > 0.0 { v + 15.0 } else { 0.0 })
+            .collect();
+        assert!((offset.eval(&much, &reference, 0.0) - 5.0).abs() < 1e-5);
+        // fewer shared APs than SHARED_AP_MIN_FOR_OFFSET: no offset removed
+        let few_ref = [30.0, 25.0, 20.0, 0.0, 0.0, 0.0, 0.0];
+        let few: Vec<f32> = few_ref
+            .iter()
+            .map(|&v| if v > 0.0 { v + 8.0 } else { 0.0 })
+            .collect();
+        assert!((offset.eval(&few, &few_ref, 0.0) - 8.0).abs() < 1e-5);
     }
 
     #[test]

@@ -174,6 +174,17 @@ impl KnnMatcher {
                 "weight power must be finite and >= 0, got {power}"
             )));
         }
+        if let Metric::SharedAp(d) = config.metric
+            && !(d.lambda.is_finite()
+                && d.lambda >= 0.0
+                && d.max_offset_db.is_finite()
+                && d.max_offset_db >= 0.0)
+        {
+            return Err(FingerprintError::InvalidConfig(format!(
+                "shared_ap lambda and max_offset_db must be finite and >= 0, got {} and {}",
+                d.lambda, d.max_offset_db
+            )));
+        }
         let transform = Transform::new(
             config.representation,
             map.not_heard_dbm(),
@@ -185,7 +196,10 @@ impl KnnMatcher {
             (Metric::SquaredEuclidean, true) => Some(SparseKind::Squared),
             (Metric::Manhattan, true) => Some(SparseKind::Manhattan),
             (Metric::Sorensen, true) => Some(SparseKind::Sorensen),
-            (Metric::SharedAp(d), true) => Some(SparseKind::SharedAp(d.lambda)),
+            // the common-offset removal needs two passes: the dense engine's `Metric::eval`
+            (Metric::SharedAp(d), true) if d.max_offset_db == 0.0 => {
+                Some(SparseKind::SharedAp(d.lambda))
+            }
             _ => None,
         };
         let engine = match sparse_kind {
@@ -1069,6 +1083,17 @@ mod tests {
         let map = random_map(1, 5, 3);
         assert!(KnnMatcher::new(map.clone(), KnnConfig::knn(0)).is_err());
         assert!(KnnMatcher::new(map.clone(), KnnConfig::wknn(3, f64::NAN)).is_err());
+        let bad_offset = KnnConfig {
+            metric: Metric::SharedAp(crate::distance::SharedAp {
+                max_offset_db: -1.0,
+                ..Default::default()
+            }),
+            ..KnnConfig::default()
+        };
+        assert!(matches!(
+            KnnMatcher::new(map.clone(), bad_offset),
+            Err(FingerprintError::InvalidConfig(m)) if m.contains("max_offset_db")
+        ));
         let empty = RadioMap::new(map.vocabulary().clone(), RadioMapConfig::default());
         assert!(matches!(
             KnnMatcher::new(empty, KnnConfig::nn()),

@@ -421,7 +421,10 @@ mod tests {
         MedConfig {
             window,
             k,
-            metric: MedMetric::SharedAp(SharedAp { lambda }),
+            metric: MedMetric::SharedAp(SharedAp {
+                lambda,
+                ..SharedAp::default()
+            }),
             ..MedConfig::default()
         }
     }
@@ -535,7 +538,10 @@ mod tests {
             map.clone(),
             KnnConfig {
                 k: 2,
-                metric: Metric::SharedAp(SharedAp { lambda: 60.0 }),
+                metric: Metric::SharedAp(SharedAp {
+                    lambda: 60.0,
+                    ..SharedAp::default()
+                }),
                 ..KnnConfig::default()
             },
         )
@@ -568,7 +574,13 @@ mod tests {
         );
         let new: MedConfig =
             serde_json::from_str(r#"{"metric": {"kind": "shared_ap", "lambda": 60.0}}"#).unwrap();
-        assert_eq!(new.metric, MedMetric::SharedAp(SharedAp { lambda: 60.0 }));
+        assert_eq!(
+            new.metric,
+            MedMetric::SharedAp(SharedAp {
+                lambda: 60.0,
+                ..SharedAp::default()
+            })
+        );
         assert_eq!(new.metric.name(), "shared_ap");
         let back: MedConfig = serde_json::from_str(&serde_json::to_string(&new).unwrap()).unwrap();
         assert_eq!(back, new);

@@ -61,6 +61,13 @@ pub struct PointMassConfig {
     pub quality_distance: f64,
     /// Softness of that logistic, in the same unit.
     pub quality_softness: f64,
+    /// Distance walked over which two fixes' errors decorrelate, metres (0: every fix is
+    /// independent). A fix after `d` metres of walking weighs its Gaussian part with the
+    /// power `max(min_fix_weight, min(1, d / fix_decorrelation_m))`: fixes taken standing
+    /// still repeat one biased answer and count as a fraction of one.
+    pub fix_decorrelation_m: f64,
+    /// Least power of a fix's Gaussian part (see `fix_decorrelation_m`), in (0, 1].
+    pub min_fix_weight: f64,
     /// Half-width of the square over which a mode's probability is summed, metres.
     pub mode_radius_m: f64,
     /// Keep the previous mode while it holds at least this share of the best mode's mass.
@@ -105,6 +112,8 @@ impl Default for PointMassConfig {
             },
             quality_distance: 0.0,
             quality_softness: 5.0,
+            fix_decorrelation_m: 0.0,
+            min_fix_weight: 0.2,
             mode_radius_m: 5.0,
             mode_hysteresis: 0.5,
             step_scale: 1.0,
@@ -156,6 +165,7 @@ impl PointMassConfig {
             ("sd_floor_m", self.sd_floor_m),
             ("mode_radius_m", self.mode_radius_m),
             ("quality_distance", self.quality_distance),
+            ("fix_decorrelation_m", self.fix_decorrelation_m),
             ("trail_sd_m", self.trail_sd_m),
         ];
         if self.heading_hypotheses_deg.len() > super::mixture::MAX_HEADING_HYPOTHESES {
@@ -201,6 +211,7 @@ impl PointMassConfig {
             ("gap_likelihood", self.gap_likelihood),
             ("mode_hysteresis", self.mode_hysteresis),
             ("off_trail_likelihood", self.off_trail_likelihood),
+            ("min_fix_weight", self.min_fix_weight),
         ];
         for (field, v) in probabilities {
             if !(v.is_finite() && v > 0.0 && v <= 1.0) {

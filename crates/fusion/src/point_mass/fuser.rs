@@ -56,6 +56,7 @@ impl PointMassFilter {
             step.length * self.cfg.step_scale,
             step.heading + self.cfg.heading_offset_deg.to_radians(),
         );
+        self.walked_since_fix += step.length * self.cfg.step_scale;
         if !self.initialised {
             return None;
         }
@@ -175,7 +176,15 @@ impl PointMassFilter {
             }
             _ => 1.0,
         };
-        let inv = 1.0 / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
+        // Decorrelation: a fix after little walking repeats the previous one's error.
+        let power = if self.cfg.fix_decorrelation_m > 0.0 {
+            (self.walked_since_fix / self.cfg.fix_decorrelation_m)
+                .clamp(self.cfg.min_fix_weight, 1.0)
+        } else {
+            1.0
+        };
+        self.walked_since_fix = 0.0;
+        let inv = power / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
         let (outlier, gap_like) = (self.cfg.wifi_outlier, self.cfg.gap_likelihood);
         let gap_inv = 1.0 / (2.0 * self.cfg.gap_sd_m * self.cfg.gap_sd_m);
         // `is_gap(pos)` split into its row and column lookups, as in `on_step`.

@@ -119,6 +119,8 @@ pub struct PointMassFilter {
     mode: Option<usize>,
     pdr: Vector2,
     pending_drift: f64,
+    /// Metres walked since the latest fix (`fix_decorrelation_m`).
+    walked_since_fix: f64,
     /// Log of the inputs' marginal likelihood so far ([`PointMassFilter::log_evidence`]).
     log_evidence: f64,
     initialised: bool,
@@ -188,6 +190,7 @@ impl PointMassFilter {
             mode: None,
             pdr: Vector2::zeros(),
             pending_drift: 0.0,
+            walked_since_fix: 0.0,
             log_evidence: 0.0,
             initialised: false,
             reporting: false,
