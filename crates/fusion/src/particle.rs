@@ -639,6 +639,21 @@ mod tests {
     }
 
     #[test]
+    fn the_radius_is_the_cloud_plus_the_bias_share_of_the_fixes_error() {
+        let mut f = ParticleFilter::new("pf", small(), false, None, 2, None).unwrap();
+        for k in 0..10 {
+            f.on_wifi(&obs_at(k * 2000, (k % 2) as f64 * 6.0, 0.0));
+        }
+        let p = f.estimate().unwrap().covariance.unwrap();
+        let (_, cloud) = f.mean_and_cov();
+        let share = f.cfg.radius.bias_share * f.fix_error.variance();
+        assert!(share > 0.0);
+        assert!((p[(0, 0)] - cloud[(0, 0)] - share).abs() < 1e-9);
+        assert!((p[(1, 1)] - cloud[(1, 1)] - share).abs() < 1e-9);
+        assert_eq!(p[(0, 1)], p[(1, 0)]);
+    }
+
+    #[test]
     fn reseeds_after_a_wrong_start() {
         let mut f = ParticleFilter::new("pf", small(), false, None, 5, None).unwrap();
         f.on_wifi(&obs_at(0, 120.0, 0.0));

@@ -348,17 +348,11 @@ mod tests {
 
     #[test]
     fn the_radius_grows_by_dead_reckoning_and_shrinks_at_a_fix() {
-        let var = |f: &Tcpf| f.estimate().unwrap().covariance.unwrap()[(0, 0)];
         let mut f = Tcpf::new(TcpfConfig::default(), None).unwrap();
-        f.on_wifi(&obs_at(0, 0.0, 0.0));
-        let at_fix = var(&f);
-        for k in 1..=20 {
-            f.on_step(&step(500 * k, 0.7, 0.0));
-        }
-        let walked = var(&f);
+        // the second fix is a trusted point after 14 m: lambda > 0
+        let [at_fix, walked, after] = crate::synthetic::variance_at_fix_walk_fix(&mut f).unwrap();
         assert!(walked > at_fix, "{walked} <= {at_fix}");
-        f.on_wifi(&obs_at(10_500, 0.0, 14.0)); // a trusted point after 14 m: lambda > 0
-        assert!(var(&f) < walked);
+        assert!(after < walked);
     }
 
     #[test]

@@ -35,7 +35,7 @@ impl Fuser for PointMassFilter {
 
 impl PointMassFilter {
     /// The estimate and the lattice's own covariance (without the learned bias share).
-    fn lattice_estimate(&self) -> Option<(Point2, Matrix2<f64>)> {
+    pub(super) fn lattice_estimate(&self) -> Option<(Point2, Matrix2<f64>)> {
         if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
             return None;
         }

@@ -181,6 +181,20 @@ fn a_gap_raster_over_an_absurd_extent_is_none() {
 }
 
 #[test]
+fn the_radius_adds_the_bias_share_of_the_learned_fix_error() {
+    let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+    for k in 0..6 {
+        f.on_wifi(&fix(k * 2000, (k % 2) as f64 * 8.0, 0.0));
+    }
+    let (_, lattice) = f.lattice_estimate().unwrap();
+    let p = f.estimate().unwrap().covariance.unwrap();
+    let share = f.cfg.radius.bias_share * f.fix_error.variance();
+    assert!(share > 0.0);
+    assert!((p[(0, 0)] - lattice[(0, 0)] - share).abs() < 1e-6);
+    assert!((p[(1, 1)] - lattice[(1, 1)] - share).abs() < 1e-6);
+}
+
+#[test]
 fn a_given_start_is_kept_by_a_pdr_walk() {
     let mut f = PointMassFilter::new(
         PointMassConfig::default(),
