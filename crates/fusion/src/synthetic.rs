@@ -403,6 +403,21 @@ pub fn obs_at(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
     }
 }
 
+/// The x variance of `fuser`'s estimate (tests of the error radius) at three moments: after a
+/// first fix at the origin, after 20 steps of 0.7 m due north, and after a second fix where
+/// those steps ended (14 m north). `None` when an estimate carries no covariance.
+pub fn variance_at_fix_walk_fix(fuser: &mut dyn crate::Fuser) -> Option<[f64; 3]> {
+    let var = |f: &dyn crate::Fuser| f.estimate()?.covariance.map(|p| p[(0, 0)]);
+    fuser.on_wifi(&obs_at(0, 0.0, 0.0));
+    let at_fix = var(fuser)?;
+    for k in 1..=20 {
+        fuser.on_step(&step(500 * k, 0.7, 0.0));
+    }
+    let walked = var(fuser)?;
+    fuser.on_wifi(&obs_at(10_500, 0.0, 14.0));
+    Some([at_fix, walked, var(fuser)?])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -425,19 +440,4 @@ mod tests {
         assert_eq!(inputs[0], Input::Wifi(0));
         assert!(a.steps.iter().any(|s| s.motion.turn == TurnState::Turning));
     }
-}
-
-/// The x variance of `fuser`'s estimate (tests of the error radius) at three moments: after a
-/// first fix at the origin, after 20 steps of 0.7 m due north, and after a second fix where
-/// those steps ended (14 m north). `None` when an estimate carries no covariance.
-pub fn variance_at_fix_walk_fix(fuser: &mut dyn crate::Fuser) -> Option<[f64; 3]> {
-    let var = |f: &dyn crate::Fuser| f.estimate()?.covariance.map(|p| p[(0, 0)]);
-    fuser.on_wifi(&obs_at(0, 0.0, 0.0));
-    let at_fix = var(fuser)?;
-    for k in 1..=20 {
-        fuser.on_step(&step(500 * k, 0.7, 0.0));
-    }
-    let walked = var(fuser)?;
-    fuser.on_wifi(&obs_at(10_500, 0.0, 14.0));
-    Some([at_fix, walked, var(fuser)?])
 }
