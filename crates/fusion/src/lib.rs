@@ -29,6 +29,11 @@
 //! evidence ([`point_mass::PointMassMixture`], off by default). Every scheme's config has a
 //! `paper()` preset ([`SchemeConfig::paper_for`]) beside its tuned default.
 //!
+//! Every scheme's estimate carries a horizontal covariance (its 95 % radius): the Kalman
+//! family's own, and for the others the propagation and the learned Wi-Fi error of
+//! [`fix_error`] (wipdr's own: the fixes' variance from their residuals, and the share of it
+//! a walk's correlated Wi-Fi bias keeps in any average).
+//!
 //! The Kalman machinery lives in [`kalman`] (Joseph form, innovation with Mahalanobis
 //! distance, symmetric positive-definite enforcement); resampling in [`resample`] (free
 //! functions returning indexes); the wall R-tree in [`walls`]; a small deterministic

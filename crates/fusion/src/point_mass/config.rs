@@ -64,7 +64,9 @@ pub struct PointMassConfig {
     /// Distance walked over which two fixes' errors decorrelate, metres (0: every fix is
     /// independent). A fix after `d` metres of walking weighs its Gaussian part with the
     /// power `max(min_fix_weight, min(1, d / fix_decorrelation_m))`: fixes taken standing
-    /// still repeat one biased answer and count as a fraction of one.
+    /// still repeat one biased answer and count as a fraction of one. Off by default: it
+    /// helps the IPIN logfiles' standing minute and costs the ILC floors
+    /// (`docs/results/accuracy.md`, "Session 9"). wipdr's own.
     pub fix_decorrelation_m: f64,
     /// Least power of a fix's Gaussian part (see `fix_decorrelation_m`), in (0, 1].
     pub min_fix_weight: f64,
