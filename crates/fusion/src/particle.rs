@@ -434,6 +434,7 @@ impl Fuser for ParticleFilter {
         }
         self.t = step.t;
         self.odometry += angle::step_displacement(step.length, step.heading);
+        self.fix_error.walk(step.length);
         let use_walls = self.adaptive && self.cfg.use_walls && self.walls.is_some();
         let stuck = self.wall_stuck >= self.cfg.wall_stuck_steps;
         self.weights_backup.clear();

@@ -184,6 +184,7 @@ impl Fuser for RobustOffset {
         }
         self.pdr += angle::step_displacement(step.length * self.cfg.step_scale, step.heading);
         self.walked_since_fix += step.length * self.cfg.step_scale;
+        self.fix_error.walk(step.length * self.cfg.step_scale);
         self.t = step.t;
     }
 

@@ -57,6 +57,7 @@ impl PointMassFilter {
             step.heading + self.cfg.heading_offset_deg.to_radians(),
         );
         self.walked_since_fix += step.length * self.cfg.step_scale;
+        self.fix_error.walk(step.length * self.cfg.step_scale);
         if !self.initialised {
             return None;
         }
