@@ -165,10 +165,14 @@ impl RobustOffset {
 impl RobustOffset {
     /// The estimate's per-axis variance, m² (see [`RobustOffsetConfig::radius`]).
     fn variance(&self) -> f64 {
-        let r = self.fix_error.variance();
+        self.own_variance() + self.cfg.radius.bias_share * self.fix_error.variance()
+    }
+
+    /// The median's and the dead reckoning's part of [`RobustOffset::variance`], without the
+    /// bias share: what a fix's residual is predicted to hold besides the fix's own error.
+    fn own_variance(&self) -> f64 {
         let n = self.offsets.len().max(1) as f64;
-        r * (4.0 / std::f64::consts::PI) / n
-            + self.cfg.radius.bias_share * r
+        self.fix_error.variance() * (4.0 / std::f64::consts::PI) / n
             + self.cfg.radius.pdr_var_per_m * self.walked_since_fix
     }
 }
@@ -197,7 +201,7 @@ impl Fuser for RobustOffset {
             _ => 1.0,
         };
         if let Some(o) = self.offset {
-            let predicted = self.variance();
+            let predicted = self.own_variance();
             self.fix_error
                 .observe(obs.estimate.coords - (self.pdr + o), predicted);
         }
