@@ -89,7 +89,17 @@ pub struct SharedAp {
     /// wipdr's own, measured in `docs/results/accuracy.md` "Session 9"). 0 (default): off.
     #[serde(default)]
     pub max_offset_db: f32,
+    /// Detection weighting of the non-shared fraction (wipdr's own; 0, the default: off).
+    /// When > 0, each AP heard by one side only counts `P(heard | v) = 1 / (1 + exp(-(v -
+    /// null - detection_mid_db) / DETECTION_WIDTH_DB))` of one, and the union is weighed
+    /// alike, so a weak AP the other side missed costs less than a strong one: in the raw
+    /// representation with not heard = -110 dBm, 25 puts the midpoint at -85 dBm.
+    #[serde(default)]
+    pub detection_mid_db: f32,
 }
+
+/// Width of [`SharedAp::detection_mid_db`]'s logistic, dB.
+pub const DETECTION_WIDTH_DB: f32 = 4.0;
 
 /// Shared APs below which [`SharedAp::max_offset_db`] removes no offset (a mean difference over
 /// fewer is mostly the position's, not the phone's).
@@ -103,6 +113,7 @@ impl Default for SharedAp {
         Self {
             lambda: 60.0,
             max_offset_db: 0.0,
+            detection_mid_db: 0.0,
         }
     }
 }
@@ -247,6 +258,41 @@ impl Distance for SharedAp {
         } else {
             0.0
         };
+        if self.detection_mid_db > 0.0 {
+            let heard = |v: f32| {
+                1.0 / (1.0 + (-(v - null - self.detection_mid_db) / DETECTION_WIDTH_DB).exp())
+            };
+            let (mut sum, mut shared, mut union_w, mut alone_w) = (0f32, 0u32, 0f32, 0f32);
+            for (&q, &r) in a.iter().zip(b) {
+                match (q > null, r > null) {
+                    (true, true) => {
+                        sum += (q - r - offset).abs();
+                        shared += 1;
+                        union_w += 1.0;
+                    }
+                    (true, false) => {
+                        let w = heard(q);
+                        alone_w += w;
+                        union_w += w;
+                    }
+                    (false, true) => {
+                        let w = heard(r);
+                        alone_w += w;
+                        union_w += w;
+                    }
+                    (false, false) => {}
+                }
+            }
+            if union_w <= 0.0 {
+                return 0.0;
+            }
+            let mean = if shared > 0 {
+                sum / shared as f32
+            } else {
+                SHARED_AP_NONE
+            };
+            return mean + self.lambda * alone_w / union_w;
+        }
         let (mut sum, mut shared, mut union) = (0f32, 0u32, 0u32);
         for (&q, &r) in a.iter().zip(b) {
             let (hq, hr) = (q > null, r > null);
@@ -526,6 +572,38 @@ mod tests {
             .map(|&v| if v > 0.0 { v + 8.0 } else { 0.0 })
             .collect();
         assert!((offset.eval(&few, &few_ref, 0.0) - 8.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn the_detection_weighting_charges_a_missed_weak_ap_less_than_a_missed_strong_one() {
+        // raw representation, not heard = 0; 25 = -85 dBm when not heard is -110 dBm
+        let detect = SharedAp {
+            detection_mid_db: 25.0,
+            ..SharedAp::default()
+        };
+        let scan = [50.0, 40.0, 0.0];
+        let weak_missing = [50.0, 40.0, 20.0]; // the reference also hears an AP at -90 dBm
+        let strong_missing = [50.0, 40.0, 50.0]; // ... or at -60 dBm
+        let (weak, strong) = (
+            detect.eval(&scan, &weak_missing, 0.0),
+            detect.eval(&scan, &strong_missing, 0.0),
+        );
+        assert!(weak < strong, "{weak} {strong}");
+        // each missing AP counts P(heard) = 1 / (1 + e^(-(v - 25) / 4)), over a union of
+        // 2 + that: a strong one almost one (the plain distance, 20), a weak one far less
+        let fraction = |v: f32| {
+            let w = 1.0 / (1.0 + (-(v - 25.0) / DETECTION_WIDTH_DB).exp());
+            60.0 * w / (2.0 + w)
+        };
+        assert!((strong - fraction(50.0)).abs() < 1e-4, "{strong}");
+        assert!((weak - fraction(20.0)).abs() < 1e-4, "{weak}");
+        let plain = SharedAp::default().eval(&scan, &strong_missing, 0.0);
+        assert!(
+            (plain - 20.0).abs() < 1e-5 && strong > 19.9 && weak < 10.0,
+            "{plain}"
+        );
+        // nothing heard on either side: 0, as the plain distance
+        assert_eq!(detect.eval(&[0.0, 0.0], &[0.0, 0.0], 0.0), 0.0);
     }
 
     #[test]

@@ -178,11 +178,13 @@ impl KnnMatcher {
             && !(d.lambda.is_finite()
                 && d.lambda >= 0.0
                 && d.max_offset_db.is_finite()
-                && d.max_offset_db >= 0.0)
+                && d.max_offset_db >= 0.0
+                && d.detection_mid_db.is_finite()
+                && d.detection_mid_db >= 0.0)
         {
             return Err(FingerprintError::InvalidConfig(format!(
-                "shared_ap lambda and max_offset_db must be finite and >= 0, got {} and {}",
-                d.lambda, d.max_offset_db
+                "shared_ap lambda, max_offset_db and detection_mid_db must be finite and >= 0, got {}, {} and {}",
+                d.lambda, d.max_offset_db, d.detection_mid_db
             )));
         }
         let transform = Transform::new(
@@ -197,7 +199,7 @@ impl KnnMatcher {
             (Metric::Manhattan, true) => Some(SparseKind::Manhattan),
             (Metric::Sorensen, true) => Some(SparseKind::Sorensen),
             // the common-offset removal needs two passes: the dense engine's `Metric::eval`
-            (Metric::SharedAp(d), true) if d.max_offset_db == 0.0 => {
+            (Metric::SharedAp(d), true) if d.max_offset_db == 0.0 && d.detection_mid_db == 0.0 => {
                 Some(SparseKind::SharedAp(d.lambda))
             }
             _ => None,

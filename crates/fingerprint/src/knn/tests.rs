@@ -241,6 +241,17 @@ fn bad_config_rejected() {
         KnnMatcher::new(map.clone(), bad_offset),
         Err(FingerprintError::InvalidConfig(m)) if m.contains("max_offset_db")
     ));
+    let bad_detection = KnnConfig {
+        metric: Metric::SharedAp(crate::distance::SharedAp {
+            detection_mid_db: f32::NAN,
+            ..Default::default()
+        }),
+        ..KnnConfig::default()
+    };
+    assert!(matches!(
+        KnnMatcher::new(map.clone(), bad_detection),
+        Err(FingerprintError::InvalidConfig(m)) if m.contains("detection_mid_db")
+    ));
     let empty = RadioMap::new(map.vocabulary().clone(), RadioMapConfig::default());
     assert!(matches!(
         KnnMatcher::new(empty, KnnConfig::nn()),
