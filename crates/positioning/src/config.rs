@@ -62,13 +62,23 @@ impl Default for PositionerConfig {
 }
 
 /// The default matcher: the AP-matching index (paper 002 §3.2) with the top 4 offline APs and
-/// no online RSSI threshold (paper: top 2, -85 / -75 dBm), WKNN over the shared APs.
+/// no online RSSI threshold (paper: top 2, -85 / -75 dBm), WKNN over the shared APs with
+/// `lambda = 80` and the detection weighting at `detection_mid_db = 20` (-90 dBm with not
+/// heard = -110; [`wipdr_fingerprint::distance::SharedAp`]: chosen on both buildings,
+/// `docs/results/accuracy.md` "Session 10"; before: `lambda = 60`, no weighting).
 pub fn recommended_matcher() -> MatcherConfig {
     match MatcherConfig::defaults_for("apindex") {
         Ok(MatcherConfig::Apindex(c)) => {
             MatcherConfig::Apindex(wipdr_fingerprint::ap_index::ApIndexConfig {
                 top_offline: 4,
                 apply_threshold: false,
+                metric: wipdr_fingerprint::distance::Metric::SharedAp(
+                    wipdr_fingerprint::distance::SharedAp {
+                        lambda: 80.0,
+                        detection_mid_db: 20.0,
+                        ..Default::default()
+                    },
+                ),
                 ..c
             })
         }
