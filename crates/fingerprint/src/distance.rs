@@ -258,53 +258,32 @@ impl Distance for SharedAp {
         } else {
             0.0
         };
-        if self.detection_mid_db > 0.0 {
-            let heard = |v: f32| {
+        // An AP heard by one side only counts P(heard | its value) of one (1 without the
+        // detection weighting, the plain non-shared fraction); the union alike.
+        let heard = |v: f32| {
+            if self.detection_mid_db > 0.0 {
                 1.0 / (1.0 + (-(v - null - self.detection_mid_db) / DETECTION_WIDTH_DB).exp())
-            };
-            let (mut sum, mut shared, mut union_w, mut alone_w) = (0f32, 0u32, 0f32, 0f32);
-            for (&q, &r) in a.iter().zip(b) {
-                match (q > null, r > null) {
-                    (true, true) => {
-                        sum += (q - r - offset).abs();
-                        shared += 1;
-                        union_w += 1.0;
-                    }
-                    (true, false) => {
-                        let w = heard(q);
-                        alone_w += w;
-                        union_w += w;
-                    }
-                    (false, true) => {
-                        let w = heard(r);
-                        alone_w += w;
-                        union_w += w;
-                    }
-                    (false, false) => {}
-                }
-            }
-            if union_w <= 0.0 {
-                return 0.0;
-            }
-            let mean = if shared > 0 {
-                sum / shared as f32
             } else {
-                SHARED_AP_NONE
-            };
-            return mean + self.lambda * alone_w / union_w;
-        }
-        let (mut sum, mut shared, mut union) = (0f32, 0u32, 0u32);
+                1.0
+            }
+        };
+        let (mut sum, mut shared, mut union_w, mut alone_w) = (0f32, 0u32, 0f32, 0f32);
         for (&q, &r) in a.iter().zip(b) {
-            let (hq, hr) = (q > null, r > null);
-            if hq && hr {
-                sum += (q - r - offset).abs();
-                shared += 1;
-            }
-            if hq || hr {
-                union += 1;
-            }
+            let alone = match (q > null, r > null) {
+                (true, true) => {
+                    sum += (q - r - offset).abs();
+                    shared += 1;
+                    union_w += 1.0;
+                    continue;
+                }
+                (true, false) => heard(q),
+                (false, true) => heard(r),
+                (false, false) => continue,
+            };
+            alone_w += alone;
+            union_w += alone;
         }
-        if union == 0 {
+        if union_w <= 0.0 {
             return 0.0;
         }
         let mean = if shared > 0 {
@@ -312,7 +291,7 @@ impl Distance for SharedAp {
         } else {
             SHARED_AP_NONE
         };
-        mean + self.lambda * (union - shared) as f32 / union as f32
+        mean + self.lambda * alone_w / union_w
     }
 }
 
