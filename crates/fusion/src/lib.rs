@@ -269,22 +269,7 @@ pub fn scheme_names() -> &'static [&'static str] {
 impl SchemeConfig {
     /// The default config of scheme `name`.
     pub fn default_for(name: &str) -> Result<Self, FusionError> {
-        Ok(match name {
-            "wifi" => Self::Wifi(WifiOnlyConfig::default()),
-            "pdr" => Self::Pdr(PdrOnlyConfig::default()),
-            "ekf" => Self::Ekf(EkfConfig::default()),
-            "aekf" => Self::Aekf(EkfConfig::default()),
-            "akf" => Self::Akf(EkfConfig::default()),
-            "rkf" => Self::Rkf(EkfConfig::default()),
-            "arkf" => Self::Arkf(EkfConfig::default()),
-            "aws" => Self::Aws(AwsConfig::default()),
-            "tcpf" => Self::Tcpf(TcpfConfig::default()),
-            "pf" => Self::Pf(PfConfig::default()),
-            "apf" => Self::Apf(PfConfig::default()),
-            "rof" => Self::Rof(RobustOffsetConfig::default()),
-            "pmf" => Self::Pmf(PointMassConfig::default()),
-            other => return Err(FusionError::UnknownScheme(other.to_string())),
-        })
+        Self::preset_for(name, false)
     }
 
     /// The papers' config of scheme `name` (each config's `paper()`): the values the papers
@@ -300,20 +285,28 @@ impl SchemeConfig {
     /// assert_ne!(SchemeConfig::paper_for("ekf").unwrap(), SchemeConfig::default_for("ekf").unwrap());
     /// ```
     pub fn paper_for(name: &str) -> Result<Self, FusionError> {
+        Self::preset_for(name, true)
+    }
+
+    /// Scheme `name` at its papers' preset (`paper`) or its default.
+    fn preset_for(name: &str, paper: bool) -> Result<Self, FusionError> {
+        fn pick<T: Default>(paper: bool, preset: fn() -> T) -> T {
+            if paper { preset() } else { T::default() }
+        }
         Ok(match name {
             "wifi" => Self::Wifi(WifiOnlyConfig::default()),
-            "pdr" => Self::Pdr(PdrOnlyConfig::paper()),
-            "ekf" => Self::Ekf(EkfConfig::paper()),
-            "aekf" => Self::Aekf(EkfConfig::paper()),
-            "akf" => Self::Akf(EkfConfig::paper()),
-            "rkf" => Self::Rkf(EkfConfig::paper()),
-            "arkf" => Self::Arkf(EkfConfig::paper()),
-            "aws" => Self::Aws(AwsConfig::paper()),
-            "tcpf" => Self::Tcpf(TcpfConfig::paper()),
-            "pf" => Self::Pf(PfConfig::paper()),
-            "apf" => Self::Apf(PfConfig::paper()),
-            "rof" => Self::Rof(RobustOffsetConfig::paper()),
-            "pmf" => Self::Pmf(PointMassConfig::paper()),
+            "pdr" => Self::Pdr(pick(paper, PdrOnlyConfig::paper)),
+            "ekf" => Self::Ekf(pick(paper, EkfConfig::paper)),
+            "aekf" => Self::Aekf(pick(paper, EkfConfig::paper)),
+            "akf" => Self::Akf(pick(paper, EkfConfig::paper)),
+            "rkf" => Self::Rkf(pick(paper, EkfConfig::paper)),
+            "arkf" => Self::Arkf(pick(paper, EkfConfig::paper)),
+            "aws" => Self::Aws(pick(paper, AwsConfig::paper)),
+            "tcpf" => Self::Tcpf(pick(paper, TcpfConfig::paper)),
+            "pf" => Self::Pf(pick(paper, PfConfig::paper)),
+            "apf" => Self::Apf(pick(paper, PfConfig::paper)),
+            "rof" => Self::Rof(pick(paper, RobustOffsetConfig::paper)),
+            "pmf" => Self::Pmf(pick(paper, PointMassConfig::paper)),
             other => return Err(FusionError::UnknownScheme(other.to_string())),
         })
     }
