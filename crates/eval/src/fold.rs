@@ -2,6 +2,7 @@
 //! its extension, the built matcher, the calibrated PDR, coverage and trails), and the
 //! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
 
+use crate::coverage::{MeasuredPoint, coverage_distance};
 use crate::folds::folds_of_walks;
 use crate::pipeline::FloorEnv;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
@@ -50,6 +51,9 @@ pub struct FoldModel {
     pub pdr: PdrConfig,
     /// Positions of the radio map's measured reference points (coverage for `pmf`).
     pub coverage: Arc<Vec<Point2>>,
+    /// The radio map's measured reference points with their floors (before any path-loss
+    /// extension): what [`crate::coverage`] measures a waypoint's distance to.
+    pub measured: Arc<Vec<MeasuredPoint>>,
     /// Where the training walks went; `None` when they have fewer than two waypoints each.
     pub trails: Option<Arc<TrailRaster>>,
     /// Indices (into the floor's walks) of the fold's test walks.
@@ -169,6 +173,15 @@ impl FoldModel {
         tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
         let mut coverage: Arc<Vec<Point2>> =
             Arc::new(map.points().iter().map(|p| p.position).collect());
+        let measured: Arc<Vec<MeasuredPoint>> = Arc::new(
+            map.points()
+                .iter()
+                .map(|p| MeasuredPoint {
+                    position: p.position,
+                    floor: p.floor,
+                })
+                .collect(),
+        );
         if let Some(prop) = &cfg.propagation {
             let plan = &floor.data.plan;
             // Per floor: an AP's path-loss model is fitted on (and extends) one floor.
@@ -221,6 +234,7 @@ impl FoldModel {
             matcher,
             pdr,
             coverage,
+            measured,
             trails,
             test_walks,
         })
@@ -310,6 +324,11 @@ impl FoldModel {
             observations,
             unmatched_scans: usize::try_from(counts.unmatched_scans).unwrap_or(usize::MAX),
             first_scan_t: walk.wifi.first().map(|s| s.t),
+            waypoint_coverage_m: walk
+                .waypoints
+                .iter()
+                .map(|w| coverage_distance(w.position, w.floor, &self.measured))
+                .collect(),
             waypoints: walk.waypoints.clone(),
             floors,
             off_floor_fixes: usize::try_from(counts.off_floor_fixes).unwrap_or(usize::MAX),

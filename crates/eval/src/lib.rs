@@ -33,6 +33,7 @@
 //! ```
 
 pub mod config;
+pub mod coverage;
 pub mod drawing;
 pub mod fingerprint_benchmark;
 pub mod fold;

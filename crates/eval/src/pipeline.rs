@@ -10,6 +10,7 @@
 //! is the PDR-only baseline, which by the protocol starts at the true first waypoint and is
 //! labelled so.
 
+use crate::coverage::attach_coverage;
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
 use crate::report::{EvalReport, WalkResult};
@@ -156,6 +157,9 @@ pub struct PreparedWalk {
     pub first_scan_t: Option<TimestampMs>,
     /// Ground truth, for scoring only.
     pub waypoints: Vec<Waypoint>,
+    /// Each waypoint's distance to the fold's nearest measured reference point on its floor
+    /// (aligned with `waypoints`; [`crate::coverage`]), for the error-by-coverage table.
+    pub waypoint_coverage_m: Vec<Option<f64>>,
     /// The stream's floor estimate (`(time, floor)` at each change; empty when the radio
     /// map has no floors): scheme-independent, made by the front end from Wi-Fi and the
     /// barometer.
@@ -511,7 +515,7 @@ pub fn run_prepared_observed(
             } else {
                 None
             };
-            let score = match cfg.score_first_m {
+            let mut score = match cfg.score_first_m {
                 None => score_track_with_floors(&pw.waypoints, &track, &pw.floors, from),
                 Some(m) => score_track_with_floors(
                     &first_metres(&pw.waypoints, m),
@@ -520,6 +524,8 @@ pub fn run_prepared_observed(
                     from,
                 ),
             };
+            // `first_metres` keeps a prefix of the waypoints, so the alignment holds.
+            attach_coverage(&mut score, &pw.waypoints, &pw.waypoint_coverage_m);
             on_done();
             Ok(WalkResult {
                 floor: pw.floor.clone(),

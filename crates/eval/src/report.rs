@@ -207,6 +207,9 @@ impl EvalReport {
                 if !w.score.sd_m.is_empty() {
                     walk["sd_m"] = serde_json::json!(w.score.sd_m);
                 }
+                if !w.score.coverage_m.is_empty() {
+                    walk["coverage_m"] = serde_json::json!(w.score.coverage_m);
+                }
                 walk
             }).collect::<Vec<_>>(),
             "schemes": self.schemes,
@@ -417,6 +420,7 @@ mod tests {
                 skipped: 1,
                 floor_scored: 0,
                 sd_m: Vec::new(),
+                coverage_m: Vec::new(),
             },
         }
     }

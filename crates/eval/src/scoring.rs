@@ -83,6 +83,11 @@ pub struct WalkScore {
     /// with `errors`: that of the estimate scored there; empty where the scheme has none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sd_m: Vec<Option<f64>>,
+    /// Distance (metres) of each scored waypoint, aligned with `errors`, to the fold's
+    /// nearest measured reference point on its floor ([`crate::coverage`]); empty where
+    /// not measured.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub coverage_m: Vec<Option<f64>>,
 }
 
 impl WalkScore {

@@ -460,6 +460,7 @@ mod tests {
                 skipped: 1,
                 floor_scored: 0,
                 sd_m: vec![Some(1.0), None],
+                coverage_m: vec![Some(3.0), Some(40.0)],
             },
         }
     }

@@ -55,6 +55,11 @@ pub struct Args {
     /// waypoint), indices from N on in one row: how fast each scheme settles.
     #[arg(long, value_name = "N")]
     pub by_index: Option<usize>,
+    /// Also print the pooled error by each scored waypoint's distance to the fold's nearest
+    /// measured reference point on its floor, in bins with these edges (metres, increasing,
+    /// e.g. `5,10,20`): how much of each scheme's error sits in coverage gaps.
+    #[arg(long, value_name = "M,M,..", value_delimiter = ',')]
+    pub by_coverage: Option<Vec<f64>>,
     /// Run one deterministic slice `I/N` of the work items (floor x fold: items k with
     /// k % N == I) and write a shard file with `--json`, for `wipdr eval merge`.
     #[arg(long, requires = "json", conflicts_with = "plots")]
@@ -338,6 +343,10 @@ pub fn run(args: Args) -> Result<()> {
         .as_deref()
         .map(str::parse::<ShardId>)
         .transpose()?;
+    if let Some(edges) = &args.by_coverage {
+        wipdr_eval::coverage::validate_edges(edges)
+            .map_err(|e| anyhow::anyhow!("--by-coverage: {e}"))?;
+    }
     let mut cfg = load_config(args.config.as_deref())?;
     cfg.offline |= args.offline;
     let floors = data::load_floors(&args.data)?;
@@ -363,6 +372,12 @@ pub fn run(args: Args) -> Result<()> {
             "\npooled error by waypoint index within the walk (mean m / share of the scheme's summed error)"
         );
         print!("{}", report.index_table(last.max(1)));
+    }
+    if let Some(edges) = &args.by_coverage {
+        println!(
+            "\npooled error by distance to the nearest measured reference point on the floor (mean m / share of the scheme's summed error)"
+        );
+        print!("{}", report.coverage_table(edges));
     }
     Ok(())
 }
