@@ -96,8 +96,18 @@ impl Default for EvalConfig {
             radio_map,
             matcher: positioner.matcher,
             map_matching: positioner.map_matching,
-            // the handling gate on (the papers' preset has none)
-            pdr: positioner.pdr,
+            // the handling gate on (the papers' preset has none), heading snapping on (its
+            // grid orientation learned from the training legs by `calibrate_pdr`)
+            pdr: wipdr_pdr::PdrConfig {
+                heading: wipdr_pdr::pipeline::HeadingConfig {
+                    snap: wipdr_pdr::snap::HeadingSnapConfig {
+                        enabled: true,
+                        ..Default::default()
+                    },
+                    ..positioner.pdr.heading
+                },
+                ..positioner.pdr
+            },
             propagation: Some(PropagationConfig {
                 min_predicted_dbm: -85.0,
                 ..PropagationConfig::default()

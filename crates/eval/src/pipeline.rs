@@ -187,13 +187,18 @@ impl PreparedWalk {
     }
 }
 
+/// Least concentration of the training legs about their grid orientation
+/// ([`wipdr_pdr::snap::grid_orientation`]) for [`calibrate_pdr`] to keep heading snapping on.
+pub const MIN_GRID_CONCENTRATION: f64 = 0.3;
+
 /// Steps of `walk` under `cfg`.
 pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
     Pdr::run(*cfg, walk)
 }
 
 /// Fits step length and heading offset on `training` walks (their waypoints are training
-/// data). Returns `base` unchanged when there is nothing to fit on.
+/// data); with heading snapping on, also the grid orientation of their legs (snapping is
+/// turned off when the legs follow no grid). Returns `base` unchanged when there is nothing to fit on.
 pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
     let detailed: Vec<_> = training
         .par_iter()
@@ -207,7 +212,32 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
             waypoints: &w.waypoints,
         })
         .collect();
-    crate::pdr_protocol::calibrate_steps(base, cal, &walks)
+    let mut cfg = crate::pdr_protocol::calibrate_steps(base, cal, &walks);
+    if cfg.heading.snap.enabled {
+        let legs = training.iter().flat_map(|w| {
+            w.waypoints.windows(2).map(|p| {
+                (
+                    p[1].position.x - p[0].position.x,
+                    p[1].position.y - p[0].position.y,
+                )
+            })
+        });
+        match wipdr_pdr::snap::grid_orientation(legs) {
+            Some((o, r)) if r >= MIN_GRID_CONCENTRATION => {
+                tracing::info!(
+                    orientation_deg = o.to_degrees(),
+                    concentration = r,
+                    "heading snap: grid orientation learned"
+                );
+                cfg.heading.snap.orientation_rad = o;
+            }
+            other => {
+                tracing::info!(?other, "heading snap off: the training legs follow no grid");
+                cfg.heading.snap.enabled = false;
+            }
+        }
+    }
+    cfg
 }
 
 /// A floor needs a walk per fold (route folds: at least two routes).

@@ -14,7 +14,9 @@
 //! - motion state per step (paper 001 eq. 17-18, paper 000 §4.1, paper 002 §3.2.1):
 //!   [`motion`];
 //! - calibration from walks with waypoints (least-squares step-length coefficients, the
-//!   floor's heading offset) and the leg / position scoring of PDR: [`calibrate`].
+//!   floor's heading offset) and the leg / position scoring of PDR: [`calibrate`];
+//! - heading snapping to the building's dominant directions on straight stretches (heuristic
+//!   drift elimination for absolute headings; wipdr's own, off unless configured): [`snap`].
 //!
 //! Bad input (NaN samples, repeated or backwards timestamps, gaps, a missing gyroscope or
 //! magnetometer) has documented behaviour: see [`Pdr`].
@@ -47,6 +49,7 @@ pub mod handling;
 pub mod length;
 pub mod motion;
 pub mod pipeline;
+pub mod snap;
 pub mod vertical;
 
 pub use length::{StepFeatures, StepLengthConfig, StepLengthModel};

@@ -77,6 +77,8 @@ pub struct HeadingConfig {
     pub gyro: GyroAttitudeConfig,
     /// Heading Kalman filter settings.
     pub kf: HeadingKfConfig,
+    /// Snapping to the building's dominant directions (off by default).
+    pub snap: crate::snap::HeadingSnapConfig,
 }
 
 impl Default for HeadingConfig {
@@ -87,6 +89,7 @@ impl Default for HeadingConfig {
             map_offset_rad: 0.0,
             gyro: GyroAttitudeConfig::default(),
             kf: HeadingKfConfig::default(),
+            snap: crate::snap::HeadingSnapConfig::default(),
         }
     }
 }
@@ -352,6 +355,7 @@ pub struct Pdr {
     prev_variance: Option<f64>,
     prev_period: Option<f64>,
     handling: crate::handling::HandlingGate,
+    snap: crate::snap::HeadingSnap,
     diag: PdrDiagnostics,
 }
 
@@ -385,6 +389,7 @@ impl Pdr {
             prev_variance: None,
             prev_period: None,
             handling: crate::handling::HandlingGate::default(),
+            snap: crate::snap::HeadingSnap::default(),
             diag: PdrDiagnostics::default(),
         }
     }
@@ -608,6 +613,7 @@ impl Pdr {
                 }
             },
         };
+        let heading = self.snap.apply(heading, &cfg.heading.snap);
         let heading_change = self.prev_heading.map_or(0.0, |p| diff(heading, p));
         // SGyr_k: the gyro's accumulated heading rate; without a gyro the heading change.
         let sgyr = if self.last_gyro_t.is_some() {
