@@ -9,7 +9,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use std::sync::{Arc, Mutex};
 use wipdr_core::{Bssid, Floor as CoreFloor, Point2, TimestampMs};
-use wipdr_eval::coverage::MeasuredPoint;
+use wipdr_eval::coverage::measured_points;
 use wipdr_eval::fold::FoldModel;
 use wipdr_eval::pipeline::{EvalConfig, FloorInput};
 use wipdr_fingerprint::RadioMap;
@@ -169,15 +169,7 @@ impl PyRadioMap {
         let map = RadioMap::from_records(records, cfg.radio_map.radio)
             .map_err(|e| input_error(format!("RadioMap.from_records: {e}")))?;
         let coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
-        let measured = Arc::new(
-            map.points()
-                .iter()
-                .map(|p| MeasuredPoint {
-                    position: p.position,
-                    floor: p.floor,
-                })
-                .collect(),
-        );
+        let measured = Arc::new(measured_points(&map));
         let plan = crate::floor::plan_around(map.points().iter().map(|p| p.position))?;
         let map = Arc::new(map);
         let matcher = cfg

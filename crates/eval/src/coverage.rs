@@ -37,6 +37,17 @@ pub struct MeasuredPoint {
     pub floor: Option<i32>,
 }
 
+/// The reference points of `map` as [`MeasuredPoint`]s (position and floor).
+pub fn measured_points(map: &wipdr_fingerprint::radio_map::RadioMap) -> Vec<MeasuredPoint> {
+    map.points()
+        .iter()
+        .map(|p| MeasuredPoint {
+            position: p.position,
+            floor: p.floor,
+        })
+        .collect()
+}
+
 /// The 2D distance (metres) from `position` to the nearest point of `points` on `floor`
 /// (a point without a floor, or a `floor` of `None`, matches any floor). `None` when no
 /// point matches.

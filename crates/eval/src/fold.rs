@@ -2,7 +2,7 @@
 //! its extension, the built matcher, the calibrated PDR, coverage and trails), and the
 //! [`Positioner`](wipdr_positioning::Positioner) parts a test walk runs through.
 
-use crate::coverage::{MeasuredPoint, coverage_distance};
+use crate::coverage::{MeasuredPoint, coverage_distance, measured_points};
 use crate::folds::folds_of_walks;
 use crate::pipeline::FloorEnv;
 use crate::pipeline::{EvalConfig, calibrate_pdr};
@@ -173,15 +173,7 @@ impl FoldModel {
         tracing::debug!(floor = %floor.label, fold, points = map.len(), aps = map.n_aps(), ?report, "radio map");
         let mut coverage: Arc<Vec<Point2>> =
             Arc::new(map.points().iter().map(|p| p.position).collect());
-        let measured: Arc<Vec<MeasuredPoint>> = Arc::new(
-            map.points()
-                .iter()
-                .map(|p| MeasuredPoint {
-                    position: p.position,
-                    floor: p.floor,
-                })
-                .collect(),
-        );
+        let measured: Arc<Vec<MeasuredPoint>> = Arc::new(measured_points(&map));
         if let Some(prop) = &cfg.propagation {
             let plan = &floor.data.plan;
             // Per floor: an AP's path-loss model is fitted on (and extends) one floor.

@@ -44,8 +44,12 @@ fn check(cfg: &EvalConfig) {
                 .score_from_first_scan
                 .then(|| walk.wifi.first().map(|s| s.t))
                 .flatten();
-            let located = score_track(&walk.waypoints, &track, from);
+            let mut located = score_track(&walk.waypoints, &track, from);
             assert!(!located.errors.is_empty(), "{scheme}: nothing scored");
+            // The coverage distances annotate the waypoints (scheme-independent), not the
+            // estimates: eval attaches them, a located track carries none.
+            assert_eq!(from_eval.score.coverage_m.len(), located.errors.len());
+            located.coverage_m = from_eval.score.coverage_m.clone();
             assert_eq!(
                 located, from_eval.score,
                 "{scheme} on walk {}: locate and eval differ",
