@@ -214,6 +214,9 @@ impl EvalConfig {
                 }
                 other => invalid("", other.to_string()),
             })?;
+        if let Err((field, reason)) = self.calibration.validate() {
+            return Err(invalid(&format!("calibration.{field}"), reason));
+        }
         if let Some(i) = &self.radio_map.interpolation {
             i.validate()
                 .map_err(|e| invalid("radio_map.interpolation", e.to_string()))?;

@@ -12,8 +12,8 @@ use crate::folds::folds_of_walk_refs;
 use rayon::prelude::*;
 use wipdr_core::{TimestampMs, Walk, Waypoint};
 use wipdr_pdr::calibrate::{
-    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_step_length,
-    leg_errors, track,
+    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_heading_snap,
+    fit_step_length, leg_errors, track,
 };
 use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
 
@@ -68,7 +68,9 @@ pub fn walk_steps(runs: &[WalkRun], keep: impl Fn(&WalkRun) -> bool) -> Vec<Walk
 
 /// The calibration of the protocol on steps already run under `base`: the step-length
 /// coefficients fitted on the training legs, then (when `cal.fit_heading_offset`) the heading
-/// offset of `base.heading.source`, added to `base`'s. Returns `base` with the fitted values;
+/// offset of `base.heading.source`, added to `base`'s, and (when heading snapping is on) the
+/// grid orientation of the training legs, snapping turned off where they follow no grid
+/// ([`wipdr_pdr::calibrate::fit_heading_snap`]). Returns `base` with the fitted values;
 /// unchanged where there is nothing to fit on. Equal to
 /// [`crate::pipeline::calibrate_pdr`] on the same walks (tested).
 pub fn calibrate_steps(
@@ -83,6 +85,7 @@ pub fn calibrate_steps(
     {
         out.heading.map_offset_rad = base.heading.map_offset_rad + off;
     }
+    out.heading.snap = fit_heading_snap(&base.heading.snap, walks, cal).0;
     out
 }
 
@@ -173,7 +176,7 @@ pub fn score_schemes(
             let fold_count = runs.iter().map(|r| r.fold + 1).max().unwrap_or(0);
             for fold in 0..fold_count {
                 let train = walk_steps(runs, |r| r.fold != fold);
-                let (model, offset) = if sc.calibrate {
+                let (model, offset, snap) = if sc.calibrate {
                     let mut base = *run_cfg;
                     base.step_length = sc.model;
                     base.heading.source = sc.source;
@@ -185,9 +188,10 @@ pub fn score_schemes(
                     (
                         out.step_length,
                         out.heading.map_offset_rad - base.heading.map_offset_rad,
+                        out.heading.snap,
                     )
                 } else {
-                    (sc.model, 0.0)
+                    (sc.model, 0.0, run_cfg.heading.snap)
                 };
                 col.offsets_deg.push(offset.to_degrees());
                 for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.fold == fold) {
@@ -204,7 +208,8 @@ pub fn score_schemes(
                         col.leg_length_rel.push(e.length_rel);
                         col.leg_heading_deg.push(e.heading.to_degrees());
                     }
-                    let tr = track(&r.steps, &model, sc.source, offset, min_len, max_len);
+                    let mut tr = track(&r.steps, &model, sc.source, offset, min_len, max_len);
+                    wipdr_pdr::snap::snap_track(&mut tr, &snap);
                     col.positions.extend(
                         dead_reckon_at_waypoints(&tr, &r.waypoints, r.first_wifi)
                             .iter()

@@ -187,18 +187,15 @@ impl PreparedWalk {
     }
 }
 
-/// Least concentration of the training legs about their grid orientation
-/// ([`wipdr_pdr::snap::grid_orientation`]) for [`calibrate_pdr`] to keep heading snapping on.
-pub const MIN_GRID_CONCENTRATION: f64 = 0.3;
-
 /// Steps of `walk` under `cfg`.
 pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
     Pdr::run(*cfg, walk)
 }
 
-/// Fits step length and heading offset on `training` walks (their waypoints are training
-/// data); with heading snapping on, also the grid orientation of their legs (snapping is
-/// turned off when the legs follow no grid). Returns `base` unchanged when there is nothing to fit on.
+/// Runs PDR under `base` on the `training` walks (their waypoints are training data) and
+/// calibrates it there ([`crate::pdr_protocol::calibrate_steps`]: step length, heading offset,
+/// the grid orientation of heading snapping). Returns `base` unchanged when there is nothing
+/// to fit on.
 pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
     let detailed: Vec<_> = training
         .par_iter()
@@ -212,32 +209,7 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
             waypoints: &w.waypoints,
         })
         .collect();
-    let mut cfg = crate::pdr_protocol::calibrate_steps(base, cal, &walks);
-    if cfg.heading.snap.enabled {
-        let legs = training.iter().flat_map(|w| {
-            w.waypoints.windows(2).map(|p| {
-                (
-                    p[1].position.x - p[0].position.x,
-                    p[1].position.y - p[0].position.y,
-                )
-            })
-        });
-        match wipdr_pdr::snap::grid_orientation(legs) {
-            Some((o, r)) if r >= MIN_GRID_CONCENTRATION => {
-                tracing::info!(
-                    orientation_deg = o.to_degrees(),
-                    concentration = r,
-                    "heading snap: grid orientation learned"
-                );
-                cfg.heading.snap.orientation_rad = o;
-            }
-            other => {
-                tracing::info!(?other, "heading snap off: the training legs follow no grid");
-                cfg.heading.snap.enabled = false;
-            }
-        }
-    }
-    cfg
+    crate::pdr_protocol::calibrate_steps(base, cal, &walks)
 }
 
 /// A floor needs a walk per fold (route folds: at least two routes).

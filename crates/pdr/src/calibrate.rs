@@ -44,6 +44,10 @@ pub struct CalibrationConfig {
     pub ridge_per_leg: f64,
     /// Whether to fit the heading offset (else it stays 0).
     pub fit_heading_offset: bool,
+    /// Least concentration in `[0, 1]` of the training legs about their grid orientation
+    /// ([`fit_heading_snap`]) for heading snapping to stay on (below it the legs follow no
+    /// grid and snapping is turned off).
+    pub min_grid_concentration: f64,
 }
 
 impl Default for CalibrationConfig {
@@ -55,7 +59,35 @@ impl Default for CalibrationConfig {
             min_leg_steps: 2,
             ridge_per_leg: 0.01,
             fit_heading_offset: true,
+            min_grid_concentration: 0.3,
         }
+    }
+}
+
+impl CalibrationConfig {
+    /// Checks the values a config file could get wrong; the error names the field (under
+    /// `calibration`) and the value.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !(self.min_leg_length.is_finite() && self.min_leg_length >= 0.0) {
+            return Err((
+                "min_leg_length",
+                format!("must be finite and >= 0, got {}", self.min_leg_length),
+            ));
+        }
+        if !(self.ridge_per_leg.is_finite() && self.ridge_per_leg >= 0.0) {
+            return Err((
+                "ridge_per_leg",
+                format!("must be finite and >= 0, got {}", self.ridge_per_leg),
+            ));
+        }
+        let g = self.min_grid_concentration;
+        if !(g.is_finite() && (0.0..=1.0).contains(&g)) {
+            return Err((
+                "min_grid_concentration",
+                format!("must be in [0, 1], got {g}"),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -202,6 +234,53 @@ pub fn fit_heading_offset(
         }
     }
     (s.abs() > 1e-12 || c.abs() > 1e-12).then(|| s.atan2(c))
+}
+
+/// The grid orientation (rad) of the walks' waypoint legs and its concentration in `[0, 1]`
+/// ([`crate::snap::grid_orientation`]); `None` without legs.
+pub fn fit_grid_orientation(walks: &[WalkSteps<'_>]) -> Option<(f64, f64)> {
+    crate::snap::grid_orientation(walks.iter().flat_map(|w| {
+        w.waypoints.windows(2).map(|p| {
+            (
+                p[1].position.x - p[0].position.x,
+                p[1].position.y - p[0].position.y,
+            )
+        })
+    }))
+}
+
+/// Heading snapping calibrated on the training walks: `snap` with the legs' grid orientation
+/// when it is on and the legs' concentration reaches `cfg.min_grid_concentration`, else
+/// turned off. Returns it with the concentration found (`None` without legs or when `snap`
+/// is off).
+pub fn fit_heading_snap(
+    snap: &crate::snap::HeadingSnapConfig,
+    walks: &[WalkSteps<'_>],
+    cfg: &CalibrationConfig,
+) -> (crate::snap::HeadingSnapConfig, Option<f64>) {
+    let mut out = *snap;
+    if !snap.enabled {
+        return (out, None);
+    }
+    let fit = fit_grid_orientation(walks);
+    match fit {
+        Some((orientation, r)) if r >= cfg.min_grid_concentration => {
+            tracing::info!(
+                orientation_deg = orientation.to_degrees(),
+                concentration = r,
+                "heading snap: grid orientation learned"
+            );
+            out.orientation_rad = orientation;
+        }
+        _ => {
+            tracing::info!(
+                concentration = fit.map(|f| f.1),
+                "heading snap off: the training legs follow no grid"
+            );
+            out.enabled = false;
+        }
+    }
+    (out, fit.map(|f| f.1))
 }
 
 /// Length (m) of a step under `model` (clamped to `[min, max]` of the config it came from
@@ -428,5 +507,58 @@ mod tests {
             fit_heading_offset(&m, HeadingSource::Gyro, &[], &CalibrationConfig::default())
                 .is_none()
         );
+    }
+
+    #[test]
+    fn snapping_learns_the_legs_grid_or_turns_off() {
+        let on = crate::snap::HeadingSnapConfig {
+            enabled: true,
+            ..Default::default()
+        };
+        let cal = CalibrationConfig::default();
+        // An L-shaped walk on a grid turned by 30 deg.
+        let a = 30f64.to_radians();
+        let grid = vec![
+            wp(0, 0.0, 0.0),
+            wp(10, 10.0 * a.sin(), 10.0 * a.cos()),
+            wp(
+                20,
+                10.0 * a.sin() + 5.0 * a.cos(),
+                10.0 * a.cos() - 5.0 * a.sin(),
+            ),
+        ];
+        let walks = [WalkSteps {
+            steps: &[],
+            waypoints: &grid,
+        }];
+        let (snap, r) = fit_heading_snap(&on, &walks, &cal);
+        assert!(snap.enabled && (snap.orientation_rad - a).abs() < 1e-9);
+        assert!((r.unwrap() - 1.0).abs() < 1e-9);
+        // Legs 45 deg apart cancel: no grid, snapping off.
+        let star = vec![wp(0, 0.0, 0.0), wp(10, 0.0, 5.0), wp(20, 5.0, 10.0)];
+        let walks = [WalkSteps {
+            steps: &[],
+            waypoints: &star,
+        }];
+        let (snap, r) = fit_heading_snap(&on, &walks, &cal);
+        assert!(!snap.enabled && r.unwrap() < cal.min_grid_concentration);
+        // Off stays off, untouched.
+        let off = crate::snap::HeadingSnapConfig::default();
+        assert_eq!(fit_heading_snap(&off, &walks, &cal), (off, None));
+    }
+
+    #[test]
+    fn bad_calibration_settings_name_their_field() {
+        let c = CalibrationConfig {
+            min_grid_concentration: 1.5,
+            ..Default::default()
+        };
+        assert_eq!(c.validate().unwrap_err().0, "min_grid_concentration");
+        let c = CalibrationConfig {
+            min_leg_length: f64::NAN,
+            ..Default::default()
+        };
+        assert_eq!(c.validate().unwrap_err().0, "min_leg_length");
+        assert!(CalibrationConfig::default().validate().is_ok());
     }
 }

@@ -200,6 +200,9 @@ impl PdrConfig {
                 format!("must be finite, got {}", self.heading.map_offset_rad),
             );
         }
+        if let Err((field, reason)) = self.heading.snap.validate() {
+            return bad(field, reason);
+        }
         Ok(())
     }
 

@@ -6,7 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::FRAC_PI_2;
+use wipdr_core::angle::wrap_pi;
 
 /// Settings of [`HeadingSnap`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -37,9 +38,36 @@ impl Default for HeadingSnapConfig {
     }
 }
 
-fn wrap(a: f64) -> f64 {
-    let r = (a + PI).rem_euclid(2.0 * PI) - PI;
-    if r <= -PI { r + 2.0 * PI } else { r }
+impl HeadingSnapConfig {
+    /// Checks the values a config file could get wrong; the error names the field (under
+    /// `heading.snap`) and the value.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !self.orientation_rad.is_finite() {
+            return Err((
+                "heading.snap.orientation_rad",
+                format!("must be finite, got {}", self.orientation_rad),
+            ));
+        }
+        for (field, v, hi) in [
+            ("heading.snap.threshold_deg", self.threshold_deg, 45.0),
+            (
+                "heading.snap.straight_tolerance_deg",
+                self.straight_tolerance_deg,
+                90.0,
+            ),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= hi) {
+                return Err((field, format!("must be in (0, {hi}] degrees, got {v}")));
+            }
+        }
+        if self.window_steps == 0 {
+            return Err((
+                "heading.snap.window_steps",
+                "must be >= 1, got 0".to_string(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The state of the snapping: the recent raw headings.
@@ -70,17 +98,27 @@ impl HeadingSnap {
         }
         let mean = s.atan2(c);
         let tol = cfg.straight_tolerance_deg.to_radians();
-        if self.recent.iter().any(|h| wrap(h - mean).abs() > tol) {
+        if self.recent.iter().any(|h| wrap_pi(h - mean).abs() > tol) {
             return heading;
         }
-        let rel = wrap(mean - cfg.orientation_rad);
+        let rel = wrap_pi(mean - cfg.orientation_rad);
         let k = (rel / FRAC_PI_2).round();
-        let delta = wrap(cfg.orientation_rad + k * FRAC_PI_2 - mean);
+        let delta = wrap_pi(cfg.orientation_rad + k * FRAC_PI_2 - mean);
         if delta.abs() <= cfg.threshold_deg.to_radians() {
-            wrap(heading + delta)
+            wrap_pi(heading + delta)
         } else {
             heading
         }
+    }
+}
+
+/// The headings of a track `(t, length, heading)` snapped in order, as the PDR pipeline
+/// snaps its steps (for re-derived tracks, e.g. the calibration protocol's). Unchanged when
+/// `cfg` is off.
+pub fn snap_track<T>(track: &mut [(T, f64, f64)], cfg: &HeadingSnapConfig) {
+    let mut snap = HeadingSnap::default();
+    for step in track.iter_mut() {
+        step.2 = snap.apply(step.2, cfg);
     }
 }
 
@@ -152,5 +190,54 @@ mod tests {
         let (o, r) = grid_orientation(legs).unwrap();
         assert!((o - a).abs() < 1e-9 && (r - 1.0).abs() < 1e-9);
         assert!(grid_orientation(std::iter::empty()).is_none());
+    }
+
+    #[test]
+    fn a_snapped_track_equals_step_by_step_snapping() {
+        let cfg = HeadingSnapConfig {
+            enabled: true,
+            ..Default::default()
+        };
+        let headings = [0.1, 0.12, 0.08, 0.11, 0.09, 0.1, 1.5, 1.6];
+        let mut track: Vec<(i64, f64, f64)> = headings.iter().map(|h| (0, 0.7, *h)).collect();
+        snap_track(&mut track, &cfg);
+        let mut snap = HeadingSnap::default();
+        for (h, s) in headings.iter().zip(&track) {
+            assert_eq!(snap.apply(*h, &cfg), s.2);
+        }
+        assert!(track[5].2.abs() < 1e-12, "{}", track[5].2);
+    }
+
+    #[test]
+    fn bad_settings_name_their_field() {
+        let bad = [
+            HeadingSnapConfig {
+                threshold_deg: f64::NAN,
+                ..Default::default()
+            },
+            HeadingSnapConfig {
+                straight_tolerance_deg: -1.0,
+                ..Default::default()
+            },
+            HeadingSnapConfig {
+                window_steps: 0,
+                ..Default::default()
+            },
+            HeadingSnapConfig {
+                orientation_rad: f64::INFINITY,
+                ..Default::default()
+            },
+        ];
+        let fields: Vec<_> = bad.iter().map(|c| c.validate().unwrap_err().0).collect();
+        assert_eq!(
+            fields,
+            [
+                "heading.snap.threshold_deg",
+                "heading.snap.straight_tolerance_deg",
+                "heading.snap.window_steps",
+                "heading.snap.orientation_rad"
+            ]
+        );
+        assert!(HeadingSnapConfig::default().validate().is_ok());
     }
 }

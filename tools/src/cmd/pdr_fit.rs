@@ -88,6 +88,13 @@ pub struct Args {
     pub error_json: Option<PathBuf>,
 }
 
+fn config_name(path: &Option<PathBuf>) -> String {
+    path.as_ref().map_or_else(
+        || "built-in defaults".to_string(),
+        |p| p.display().to_string(),
+    )
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     let mut cfg: PdrConfig = match &args.config {
@@ -98,6 +105,12 @@ pub fn run(args: Args) -> Result<()> {
         Some(p) => read_config(p)?,
         None => CalibrationConfig::default(),
     };
+    if let Err(e) = cfg.validate() {
+        anyhow::bail!("{}: {}: {}", config_name(&args.config), e.field, e.reason);
+    }
+    if let Err((field, reason)) = cal.validate() {
+        anyhow::bail!("{}: {field}: {reason}", config_name(&args.calibration));
+    }
     if let Some(f) = args.fold
         && f >= FOLDS
     {
@@ -138,6 +151,23 @@ pub fn run(args: Args) -> Result<()> {
     let (model, offset) = (fitted.step_length, fitted.heading.map_offset_rad);
     cfg.step_length = model;
     cfg.heading.map_offset_rad = offset;
+    cfg.heading.snap = fitted.heading.snap;
+    if run_cfg.heading.snap.enabled {
+        match wipdr_pdr::calibrate::fit_grid_orientation(&train) {
+            Some((o, r)) => println!(
+                "grid of the training legs: orientation {:.1} deg, concentration {:.2} (heading snapping {} at >= {:.2})",
+                o.to_degrees(),
+                r,
+                if cfg.heading.snap.enabled {
+                    "on"
+                } else {
+                    "off"
+                },
+                cal.min_grid_concentration
+            ),
+            None => println!("no training legs: heading snapping off"),
+        }
+    }
 
     let errors: Vec<f64> = train
         .iter()
