@@ -159,6 +159,40 @@ mod tests {
     use std::fs::OpenOptions;
     use std::io::Write;
 
+    /// Every sweep file in `docs/sweeps` parses, and every config it expands to is a valid
+    /// evaluation config (a renamed field would otherwise fail only when someone reruns it);
+    /// the base configs there (`*-base.toml`, for `--base`) read as evaluation configs.
+    #[test]
+    fn every_shipped_sweep_expands_to_valid_configs() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/sweeps");
+        let mut read = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "toml") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            if path.to_string_lossy().ends_with("-base.toml") {
+                EvalConfig::from_toml(&text, &path.display().to_string()).unwrap();
+                continue;
+            }
+            let spec: SweepSpec =
+                toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let points = spec
+                .expand_limited(100_000)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let base = EvalConfig::default();
+            for p in &points {
+                let cfg = run::config_for(&base, &spec.scheme, p)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                cfg.validate()
+                    .unwrap_or_else(|e| panic!("{}: point {}: {e}", path.display(), p.index));
+            }
+            read += 1;
+        }
+        assert!(read >= 10, "{read} sweep files");
+    }
+
     fn spec() -> SweepSpec {
         toml::from_str(
             r#"
