@@ -308,7 +308,7 @@ impl EvalConfig {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use wipdr_fingerprint::Metric;
 
@@ -464,18 +464,30 @@ mod tests {
         }
     }
 
+    /// The `.toml` files of `docs/<folder>` with their text (shipped configs and sweeps).
+    pub(crate) fn shipped_toml_files(folder: &str) -> Vec<(std::path::PathBuf, String)> {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../docs")
+            .join(folder);
+        let mut files: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .map(|p| {
+                let text = std::fs::read_to_string(&p).unwrap();
+                (p, text)
+            })
+            .collect();
+        files.sort();
+        files
+    }
+
     #[test]
     fn every_shipped_config_reads() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/configs");
-        let mut read = 0;
-        for entry in std::fs::read_dir(&dir).unwrap() {
-            let path = entry.unwrap().path();
-            if path.extension().is_some_and(|e| e == "toml") {
-                let text = std::fs::read_to_string(&path).unwrap();
-                EvalConfig::from_toml(&text, &path.display().to_string()).unwrap();
-                read += 1;
-            }
+        let files = shipped_toml_files("configs");
+        for (path, text) in &files {
+            EvalConfig::from_toml(text, &path.display().to_string()).unwrap();
         }
-        assert!(read >= 5, "{read} configs");
+        assert!(files.len() >= 5, "{} configs", files.len());
     }
 }

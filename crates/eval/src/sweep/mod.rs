@@ -164,20 +164,14 @@ mod tests {
     /// the base configs there (`*-base.toml`, for `--base`) read as evaluation configs.
     #[test]
     fn every_shipped_sweep_expands_to_valid_configs() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/sweeps");
-        let mut read = 0;
-        for entry in std::fs::read_dir(&dir).unwrap() {
-            let path = entry.unwrap().path();
-            if path.extension().is_none_or(|e| e != "toml") {
-                continue;
-            }
-            let text = std::fs::read_to_string(&path).unwrap();
+        let files = crate::config::tests::shipped_toml_files("sweeps");
+        for (path, text) in &files {
             if path.to_string_lossy().ends_with("-base.toml") {
-                EvalConfig::from_toml(&text, &path.display().to_string()).unwrap();
+                EvalConfig::from_toml(text, &path.display().to_string()).unwrap();
                 continue;
             }
             let spec: SweepSpec =
-                toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                toml::from_str(text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             let points = spec
                 .expand_limited(100_000)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -188,9 +182,8 @@ mod tests {
                 cfg.validate()
                     .unwrap_or_else(|e| panic!("{}: point {}: {e}", path.display(), p.index));
             }
-            read += 1;
         }
-        assert!(read >= 10, "{read} sweep files");
+        assert!(files.len() >= 10, "{} sweep files", files.len());
     }
 
     fn spec() -> SweepSpec {
