@@ -83,6 +83,11 @@ pub struct PointMassConfig {
     /// evidence ([`super::PointMassMixture`]); each is added to `heading_offset_deg`. Empty:
     /// one lattice. Every entry multiplies the work.
     pub heading_hypotheses_deg: Vec<f64>,
+    /// Constant step-length scales (a walker's stride against the calibrated model), each
+    /// multiplying `step_scale`, run as lattices of their own like the heading hypotheses
+    /// (with both, every pair is one lattice: at most
+    /// [`super::MAX_HEADING_HYPOTHESES`] in all). Empty: one scale.
+    pub step_scale_hypotheses: Vec<f64>,
     /// Width (a Gaussian's standard deviation, metres) of the training trails
     /// ([`crate::trails`]) in the per-step weight; 0 turns the trail prior off (also off when
     /// the filter is built without trails).
@@ -135,6 +140,7 @@ impl Default for PointMassConfig {
             step_scale: 1.0,
             heading_offset_deg: 0.0,
             heading_hypotheses_deg: Vec::new(),
+            step_scale_hypotheses: Vec::new(),
             trail_sd_m: 0.0,
             off_trail_likelihood: 0.5,
             evidence_fast_rate: 0.0,
@@ -187,14 +193,31 @@ impl PointMassConfig {
             ("fix_decorrelation_m", self.fix_decorrelation_m),
             ("trail_sd_m", self.trail_sd_m),
         ];
-        if self.heading_hypotheses_deg.len() > super::mixture::MAX_HEADING_HYPOTHESES {
+        let lattices =
+            self.heading_hypotheses_deg.len().max(1) * self.step_scale_hypotheses.len().max(1);
+        if lattices > super::mixture::MAX_HEADING_HYPOTHESES {
             return Err(FusionError::InvalidConfig {
-                field: "heading_hypotheses_deg",
+                field: if self.step_scale_hypotheses.is_empty() {
+                    "heading_hypotheses_deg"
+                } else {
+                    "step_scale_hypotheses"
+                },
                 reason: format!(
-                    "at most {} hypotheses, got {}",
+                    "at most {} hypotheses (heading x step scale), got {} x {}",
                     super::mixture::MAX_HEADING_HYPOTHESES,
-                    self.heading_hypotheses_deg.len()
+                    self.heading_hypotheses_deg.len().max(1),
+                    self.step_scale_hypotheses.len().max(1)
                 ),
+            });
+        }
+        if let Some(k) = self
+            .step_scale_hypotheses
+            .iter()
+            .find(|k| !(k.is_finite() && (0.5..=2.0).contains(*k)))
+        {
+            return Err(FusionError::InvalidConfig {
+                field: "step_scale_hypotheses",
+                reason: format!("every entry must be within [0.5, 2], got {k}"),
             });
         }
         if let Some(h) = self

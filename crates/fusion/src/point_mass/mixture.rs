@@ -51,21 +51,24 @@ pub struct PointMassMixture {
 }
 
 impl PointMassMixture {
-    /// One component per entry of `cfg.heading_hypotheses_deg` (each added to
-    /// `cfg.heading_offset_deg`), built as [`PointMassFilter::from_context`] builds `pmf`.
+    /// One component per pair of an entry of `cfg.heading_hypotheses_deg` (each added to
+    /// `cfg.heading_offset_deg`) and one of `cfg.step_scale_hypotheses` (each multiplying
+    /// `cfg.step_scale`), heading-major, built as [`PointMassFilter::from_context`] builds
+    /// `pmf`.
     pub fn from_context(cfg: &PointMassConfig, ctx: &BuildContext) -> Result<Self, FusionError> {
         cfg.validate()?;
-        let hypotheses = if cfg.heading_hypotheses_deg.is_empty() {
-            vec![0.0]
-        } else {
-            cfg.heading_hypotheses_deg.clone()
-        };
-        let components = hypotheses
+        let or_one = |v: &[f64], none: f64| if v.is_empty() { vec![none] } else { v.to_vec() };
+        let headings = or_one(&cfg.heading_hypotheses_deg, 0.0);
+        let scales = or_one(&cfg.step_scale_hypotheses, 1.0);
+        let components = headings
             .iter()
-            .map(|h| {
+            .flat_map(|h| scales.iter().map(move |k| (*h, *k)))
+            .map(|(h, k)| {
                 let c = PointMassConfig {
                     heading_offset_deg: cfg.heading_offset_deg + h,
                     heading_hypotheses_deg: Vec::new(),
+                    step_scale: cfg.step_scale * k,
+                    step_scale_hypotheses: Vec::new(),
                     ..cfg.clone()
                 };
                 PointMassFilter::from_context(&c, ctx)

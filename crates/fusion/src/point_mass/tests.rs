@@ -464,6 +464,52 @@ fn the_walls_pick_the_heading_hypothesis() {
 }
 
 #[test]
+fn the_fixes_pick_the_step_scale_hypothesis() {
+    // A straight walk north whose PDR steps are 20 % short; exact fixes every 5 steps. The
+    // fixes' evidence favours the scale that undoes the shortening (1.25), and the mixture's
+    // estimate stays near the truth.
+    let cfg = PointMassConfig {
+        step_scale_hypotheses: vec![0.8, 1.0, 1.25],
+        ..PointMassConfig::default()
+    };
+    let mut f = PointMassMixture::from_context(&cfg, &crate::BuildContext::default()).unwrap();
+    let mut truth = Point2::new(0.0, 0.0);
+    f.on_wifi(&fix(0, truth.x, truth.y));
+    for k in 1..=100 {
+        truth.y += 0.7;
+        f.on_step(&StepEvent {
+            length: 0.56,
+            ..step(500 * k, 0.0)
+        });
+        if k % 5 == 0 {
+            f.on_wifi(&fix(500 * k, truth.x, truth.y));
+        }
+    }
+    let w = f.weights();
+    assert!(w[2] > w[1] && w[2] > w[0], "weights {w:?}");
+    let p = f.estimate().unwrap().position;
+    assert!((p - truth).norm() < 2.0, "estimate {p:?} truth {truth:?}");
+}
+
+#[test]
+fn too_many_hypotheses_are_refused_naming_the_field() {
+    let cfg = PointMassConfig {
+        heading_hypotheses_deg: vec![-3.0, 0.0, 3.0],
+        step_scale_hypotheses: vec![0.9, 0.95, 1.0, 1.05, 1.1, 1.15],
+        ..PointMassConfig::default()
+    };
+    match cfg.validate() {
+        Err(FusionError::InvalidConfig { field, .. }) => assert_eq!(field, "step_scale_hypotheses"),
+        other => panic!("{other:?}"),
+    }
+    let cfg = PointMassConfig {
+        step_scale_hypotheses: vec![0.0],
+        ..PointMassConfig::default()
+    };
+    assert!(cfg.validate().is_err());
+}
+
+#[test]
 fn smoothing_on_a_plan_places_the_walk_start_by_the_later_evidence() {
     // The ring corridor walked north then east; every fix 3 m off, the first one 15 m off
     // (the start a causal filter gets wrong). The smoothed start uses the later fixes and
