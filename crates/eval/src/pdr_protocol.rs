@@ -89,20 +89,38 @@ pub fn calibrate_steps(
     out
 }
 
-/// A step with the heading of `source` turned by `offset` (rad).
-pub fn shift_heading(s: &StepDetail, source: HeadingSource, offset: f64) -> StepDetail {
-    let mut s = *s;
+fn source_slot(s: &mut StepDetail, source: HeadingSource) -> &mut Option<f64> {
     let h = &mut s.headings;
-    let slot = match source {
+    match source {
         HeadingSource::RotationVector => &mut h.rotation_vector,
         HeadingSource::Gyro => &mut h.gyro,
         HeadingSource::GyroCompassKf => &mut h.gyro_compass_kf,
         HeadingSource::Compass => &mut h.compass,
-    };
-    if let Some(v) = slot.as_mut() {
+    }
+}
+
+/// A step with the heading of `source` turned by `offset` (rad).
+pub fn shift_heading(s: &StepDetail, source: HeadingSource, offset: f64) -> StepDetail {
+    let mut s = *s;
+    if let Some(v) = source_slot(&mut s, source).as_mut() {
         *v = wipdr_core::angle::wrap_pi(*v + offset);
     }
     s
+}
+
+/// The headings of `source` snapped in step order as the PDR pipeline snaps them
+/// ([`wipdr_pdr::snap::HeadingSnap`]); unchanged when `snap` is off.
+pub fn snap_headings(
+    steps: &mut [StepDetail],
+    source: HeadingSource,
+    snap: &wipdr_pdr::snap::HeadingSnapConfig,
+) {
+    let mut state = wipdr_pdr::snap::HeadingSnap::default();
+    for s in steps {
+        if let Some(v) = source_slot(s, source).as_mut() {
+            *v = state.apply(*v, snap);
+        }
+    }
 }
 
 /// A walk's steps as `(t, length, heading)`.
@@ -195,11 +213,13 @@ pub fn score_schemes(
                 };
                 col.offsets_deg.push(offset.to_degrees());
                 for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.fold == fold) {
-                    let shifted: Vec<StepDetail> = r
+                    let mut shifted: Vec<StepDetail> = r
                         .steps
                         .iter()
                         .map(|s| shift_heading(s, sc.source, offset))
                         .collect();
+                    // The legs see the headings the track below uses.
+                    snap_headings(&mut shifted, sc.source, &snap);
                     let ws = WalkSteps {
                         steps: &shifted,
                         waypoints: &r.waypoints,
@@ -250,6 +270,31 @@ mod tests {
         let pipeline = crate::pipeline::calibrate_pdr(&base, &cal, &train);
         assert_eq!(ours, pipeline);
         assert_ne!(ours.step_length, base.step_length);
+    }
+
+    #[test]
+    fn snapped_headings_match_the_snapped_track() {
+        let walks = fixture_walks();
+        let runs = run_walks(&[&walks[0]], &PdrConfig::default());
+        let snap = wipdr_pdr::snap::HeadingSnapConfig {
+            enabled: true,
+            threshold_deg: 45.0,
+            ..Default::default()
+        };
+        let source = HeadingSource::RotationVector;
+        let mut steps = runs[0].steps.clone();
+        snap_headings(&mut steps, source, &snap);
+        let model = StepLengthConfig::default();
+        let mut tr = track(&runs[0].steps, &model, source, 0.0, 0.0, 10.0);
+        wipdr_pdr::snap::snap_track(&mut tr, &snap);
+        let mut changed = 0;
+        for ((s, t), raw) in steps.iter().zip(&tr).zip(&runs[0].steps) {
+            if let Some(h) = s.headings.get(source) {
+                assert!((h - t.2).abs() < 1e-12);
+                changed += usize::from(Some(h) != raw.headings.get(source));
+            }
+        }
+        assert!(changed > 0, "nothing snapped");
     }
 
     #[test]
