@@ -201,3 +201,48 @@ fn eval_with_no_scored_waypoint_fails_instead_of_printing_zero() {
         "{stderr}"
     );
 }
+
+#[test]
+fn bad_pdr_and_calibration_configs_are_refused_naming_file_and_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, _) = make_floor(tmp.path());
+    let pdr = tmp.path().join("pdr.toml");
+    std::fs::write(
+        &pdr,
+        "[heading.snap]\nenabled = true\nthreshold_deg = -3.0\n",
+    )
+    .unwrap();
+    let cal = tmp.path().join("cal.toml");
+    std::fs::write(&cal, "min_grid_concentration = 2.0\n").unwrap();
+    let out_cfg = tmp.path().join("fit.toml");
+    let runs = [
+        (
+            vec!["pdr-eval".as_ref(), "--config".as_ref(), pdr.as_os_str()],
+            "heading.snap.threshold_deg",
+        ),
+        (
+            vec![
+                "pdr-fit".as_ref(),
+                "--calibration".as_ref(),
+                cal.as_os_str(),
+                "--out".as_ref(),
+                out_cfg.as_os_str(),
+            ],
+            "min_grid_concentration",
+        ),
+    ];
+    for (args, field) in runs {
+        let out = wipdr()
+            .arg("--no-cache")
+            .args(&args)
+            .arg("--data")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(field), "{field}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    assert!(!out_cfg.exists());
+}

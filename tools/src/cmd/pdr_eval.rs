@@ -58,6 +58,32 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
     }
 }
 
+/// The PDR config of `path` (defaults without one), checked: an error names the file and
+/// the field.
+pub(crate) fn read_pdr_config(path: Option<&Path>) -> Result<PdrConfig> {
+    let Some(path) = path else {
+        return Ok(PdrConfig::default());
+    };
+    let cfg: PdrConfig = read_config(path)?;
+    if let Err(e) = cfg.validate() {
+        anyhow::bail!("{}: {}: {}", path.display(), e.field, e.reason);
+    }
+    Ok(cfg)
+}
+
+/// The calibration settings of `path` (defaults without one), checked like
+/// [`read_pdr_config`].
+pub(crate) fn read_calibration(path: Option<&Path>) -> Result<CalibrationConfig> {
+    let Some(path) = path else {
+        return Ok(CalibrationConfig::default());
+    };
+    let cal: CalibrationConfig = read_config(path)?;
+    if let Err((field, reason)) = cal.validate() {
+        anyhow::bail!("{}: {field}: {reason}", path.display());
+    }
+    Ok(cal)
+}
+
 /// Reads floor folders (through the cache of this run, `--cache-dir` / `--no-cache`).
 pub(crate) fn read_floors(dirs: &[PathBuf]) -> Result<Vec<FloorData>> {
     let opts = ReadOptions::default();
@@ -139,14 +165,8 @@ fn fmt_stats(s: &ErrorStats) -> String {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
-    let cfg: PdrConfig = match &args.config {
-        Some(p) => read_config(p)?,
-        None => PdrConfig::default(),
-    };
-    let cal: CalibrationConfig = match &args.calibration {
-        Some(p) => read_config(p)?,
-        None => CalibrationConfig::default(),
-    };
+    let cfg = read_pdr_config(args.config.as_deref())?;
+    let cal = read_calibration(args.calibration.as_deref())?;
     let floors = read_floors(&args.data)?;
     let base_cfg = PdrConfig::sample_code();
 

@@ -15,7 +15,7 @@
 //! the error per metre, and TCPF's `alpha` (eq. 17) for the Wi-Fi mean error
 //! `--wifi-mean-error`.
 
-use crate::cmd::pdr_eval::{read_config, read_floors, run_floor};
+use crate::cmd::pdr_eval::{read_calibration, read_floors, read_pdr_config, run_floor};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -27,7 +27,7 @@ use wipdr_pdr::error_model::{
     HeadingErrorFit, IntegrationConfig, error_per_metre, expected_step_error, step_heading_errors,
     tcpf_alpha,
 };
-use wipdr_pdr::{HeadingSource, PdrConfig, StepLengthConfig};
+use wipdr_pdr::{HeadingSource, StepLengthConfig};
 
 /// Step-length model to fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -88,29 +88,10 @@ pub struct Args {
     pub error_json: Option<PathBuf>,
 }
 
-fn config_name(path: &Option<PathBuf>) -> String {
-    path.as_ref().map_or_else(
-        || "built-in defaults".to_string(),
-        |p| p.display().to_string(),
-    )
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
-    let mut cfg: PdrConfig = match &args.config {
-        Some(p) => read_config(p)?,
-        None => PdrConfig::default(),
-    };
-    let cal: CalibrationConfig = match &args.calibration {
-        Some(p) => read_config(p)?,
-        None => CalibrationConfig::default(),
-    };
-    if let Err(e) = cfg.validate() {
-        anyhow::bail!("{}: {}: {}", config_name(&args.config), e.field, e.reason);
-    }
-    if let Err((field, reason)) = cal.validate() {
-        anyhow::bail!("{}: {field}: {reason}", config_name(&args.calibration));
-    }
+    let mut cfg = read_pdr_config(args.config.as_deref())?;
+    let cal = read_calibration(args.calibration.as_deref())?;
     if let Some(f) = args.fold
         && f >= FOLDS
     {
