@@ -1,5 +1,6 @@
-//! `pmf` over several constant PDR heading biases: one lattice per hypothesis
-//! ([`PointMassConfig::heading_hypotheses_deg`]), weighed by its evidence (Bayesian model
+//! `pmf` over several constant PDR heading biases and step-length scales: one lattice per
+//! hypothesis ([`PointMassConfig::heading_hypotheses_deg`] x
+//! [`PointMassConfig::step_scale_hypotheses`]), weighed by its evidence (Bayesian model
 //! averaging over a static parameter, exact given the lattices).
 //!
 //! A phone's heading is often off by a few degrees for a whole walk (the compass's local
@@ -21,7 +22,7 @@ use crate::{BuildContext, Estimate, Fuser, FusionError};
 /// Most heading hypotheses (each is a lattice as large as the plan's).
 pub const MAX_HEADING_HYPOTHESES: usize = 16;
 
-/// `pmf` as a mixture over heading hypotheses; see the [module docs](self).
+/// `pmf` as a mixture over heading (and step-scale) hypotheses; see the [module docs](self).
 ///
 /// ```
 /// use wipdr_core::{MotionState, Point2, StepEvent, WifiObservation};

@@ -64,7 +64,7 @@
 //! mode search and the estimate), `gap` (the coverage-gap raster), `fuser` (the step and
 //! Wi-Fi likelihoods behind [`Fuser`]), `smoother` (forward-backward smoothing of a whole
 //! walk on the lattice, [`PointMassFilter::smooth_walk`]), `mixture` (one lattice per PDR
-//! heading-bias hypothesis, weighed by evidence, [`PointMassMixture`]) and the tests.
+//! heading-bias and step-scale hypothesis, weighed by evidence, [`PointMassMixture`]) and the tests.
 
 mod config;
 mod fuser;
