@@ -217,22 +217,10 @@ mod tests {
     use proptest::prelude::*;
 
     fn result(scheme: &str, errs: &[(f64, Option<f64>)]) -> WalkResult {
-        WalkResult {
-            floor: "A".into(),
-            walk: "w".into(),
-            fold: 0,
-            scheme: scheme.into(),
-            first_scan_t: Some(0),
-            score: WalkScore {
-                errors: errs
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &(e, _))| (i as i64, e, Some(0)))
-                    .collect(),
-                coverage_m: errs.iter().map(|&(_, d)| d).collect(),
-                ..WalkScore::default()
-            },
-        }
+        let e: Vec<f64> = errs.iter().map(|&(e, _)| e).collect();
+        let mut r = crate::report::tests::result_skipping("A", "w", scheme, &e, 0);
+        r.score.coverage_m = errs.iter().map(|&(_, d)| d).collect();
+        r
     }
 
     #[test]

@@ -78,6 +78,17 @@ pub fn calibrate_steps(
     cal: &CalibrationConfig,
     walks: &[WalkSteps<'_>],
 ) -> PdrConfig {
+    calibrate_steps_with_grid(base, cal, walks).0
+}
+
+/// [`calibrate_steps`], with the training legs' grid fit it made, `(orientation rad,
+/// concentration)` (`None` when snapping is off in `base` or there are no legs), for tools
+/// that report it (`wipdr pdr-fit`).
+pub fn calibrate_steps_with_grid(
+    base: &PdrConfig,
+    cal: &CalibrationConfig,
+    walks: &[WalkSteps<'_>],
+) -> (PdrConfig, Option<(f64, f64)>) {
     let mut out = *base;
     out.step_length = fit_step_length(base.step_length, walks, cal);
     if cal.fit_heading_offset
@@ -85,8 +96,9 @@ pub fn calibrate_steps(
     {
         out.heading.map_offset_rad = base.heading.map_offset_rad + off;
     }
-    out.heading.snap = fit_heading_snap(&base.heading.snap, walks, cal).0;
-    out
+    let (snap, grid) = fit_heading_snap(&base.heading.snap, walks, cal);
+    out.heading.snap = snap;
+    (out, grid)
 }
 
 fn source_slot(s: &mut StepDetail, source: HeadingSource) -> &mut Option<f64> {

@@ -401,10 +401,18 @@ impl EvalReport {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn result(floor: &str, walk: &str, scheme: &str, errs: &[f64]) -> WalkResult {
+    /// A walk's result with `errs` as its scored errors (floor error 0, one per index) and
+    /// `skipped` waypoints without an estimate: the fixture of the report and coverage tests.
+    pub(crate) fn result_skipping(
+        floor: &str,
+        walk: &str,
+        scheme: &str,
+        errs: &[f64],
+        skipped: usize,
+    ) -> WalkResult {
         WalkResult {
             floor: floor.into(),
             walk: walk.into(),
@@ -417,12 +425,14 @@ mod tests {
                     .enumerate()
                     .map(|(i, &e)| (i as i64, e, Some(0)))
                     .collect(),
-                skipped: 1,
-                floor_scored: 0,
-                sd_m: Vec::new(),
-                coverage_m: Vec::new(),
+                skipped,
+                ..WalkScore::default()
             },
         }
+    }
+
+    fn result(floor: &str, walk: &str, scheme: &str, errs: &[f64]) -> WalkResult {
+        result_skipping(floor, walk, scheme, errs, 1)
     }
 
     #[test]

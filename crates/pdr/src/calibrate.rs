@@ -251,13 +251,13 @@ pub fn fit_grid_orientation(walks: &[WalkSteps<'_>]) -> Option<(f64, f64)> {
 
 /// Heading snapping calibrated on the training walks: `snap` with the legs' grid orientation
 /// when it is on and the legs' concentration reaches `cfg.min_grid_concentration`, else
-/// turned off. Returns it with the concentration found (`None` without legs or when `snap`
-/// is off).
+/// turned off. Returns it with the legs' grid fit, `(orientation rad, concentration)`
+/// ([`fit_grid_orientation`]; `None` without legs or when `snap` is off).
 pub fn fit_heading_snap(
     snap: &crate::snap::HeadingSnapConfig,
     walks: &[WalkSteps<'_>],
     cfg: &CalibrationConfig,
-) -> (crate::snap::HeadingSnapConfig, Option<f64>) {
+) -> (crate::snap::HeadingSnapConfig, Option<(f64, f64)>) {
     let mut out = *snap;
     if !snap.enabled {
         return (out, None);
@@ -280,7 +280,7 @@ pub fn fit_heading_snap(
             out.enabled = false;
         }
     }
-    (out, fit.map(|f| f.1))
+    (out, fit)
 }
 
 /// Length (m) of a step under `model` (clamped to `[min, max]` of the config it came from
@@ -533,7 +533,8 @@ mod tests {
         }];
         let (snap, r) = fit_heading_snap(&on, &walks, &cal);
         assert!(snap.enabled && (snap.orientation_rad - a).abs() < 1e-9);
-        assert!((r.unwrap() - 1.0).abs() < 1e-9);
+        let (orientation, r) = r.unwrap();
+        assert!((orientation - a).abs() < 1e-9 && (r - 1.0).abs() < 1e-9);
         // Legs 45 deg apart cancel: no grid, snapping off.
         let star = vec![wp(0, 0.0, 0.0), wp(10, 0.0, 5.0), wp(20, 5.0, 10.0)];
         let walks = [WalkSteps {
@@ -541,7 +542,7 @@ mod tests {
             waypoints: &star,
         }];
         let (snap, r) = fit_heading_snap(&on, &walks, &cal);
-        assert!(!snap.enabled && r.unwrap() < cal.min_grid_concentration);
+        assert!(!snap.enabled && r.unwrap().1 < cal.min_grid_concentration);
         // Off stays off, untouched.
         let off = crate::snap::HeadingSnapConfig::default();
         assert_eq!(fit_heading_snap(&off, &walks, &cal), (off, None));

@@ -21,7 +21,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use wipdr_core::angle::wrap_pi;
 use wipdr_eval::folds::FOLDS;
-use wipdr_eval::pdr_protocol::{WalkRun, calibrate_steps};
+use wipdr_eval::pdr_protocol::{WalkRun, calibrate_steps_with_grid};
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, leg_errors, track};
 use wipdr_pdr::error_model::{
     HeadingErrorFit, IntegrationConfig, error_per_metre, expected_step_error, step_heading_errors,
@@ -128,13 +128,13 @@ pub fn run(args: Args) -> Result<()> {
     if train.is_empty() {
         anyhow::bail!("no walks to fit on");
     }
-    let fitted = calibrate_steps(&run_cfg, &cal, &train);
+    let (fitted, grid) = calibrate_steps_with_grid(&run_cfg, &cal, &train);
     let (model, offset) = (fitted.step_length, fitted.heading.map_offset_rad);
     cfg.step_length = model;
     cfg.heading.map_offset_rad = offset;
     cfg.heading.snap = fitted.heading.snap;
     if run_cfg.heading.snap.enabled {
-        match wipdr_pdr::calibrate::fit_grid_orientation(&train) {
+        match grid {
             Some((o, r)) => println!(
                 "grid of the training legs: orientation {:.1} deg, concentration {:.2} (heading snapping {} at >= {:.2})",
                 o.to_degrees(),
