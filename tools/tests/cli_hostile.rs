@@ -79,6 +79,20 @@ fn a_closed_stdout_ends_quietly_with_exit_code_0() {
     );
 }
 
+/// Runs `wipdr --no-cache ARGS`, asserts that it is refused (exit code 1, no panic) and
+/// returns its stderr.
+fn refused<I, S>(args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = wipdr().arg("--no-cache").args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
 fn cache_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|d| d.map(|e| e.unwrap().path()).collect())
@@ -184,16 +198,16 @@ fn eval_with_no_scored_waypoint_fails_instead_of_printing_zero() {
     // Scoring only the first -1 m of each walk: no waypoint is scored.
     let cfg = tmp.path().join("cfg.toml");
     std::fs::write(&cfg, "score_first_m = -1.0\n").unwrap();
-    let out = wipdr()
-        .arg("--no-cache")
-        .args(["eval", "--schemes", "wifi,pdr", "--data"])
-        .arg(sim.join("F1"))
-        .arg("--config")
-        .arg(&cfg)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let (data, cfg) = (sim.join("F1"), cfg.into_os_string());
+    let stderr = refused([
+        "eval".as_ref(),
+        "--schemes".as_ref(),
+        "wifi,pdr".as_ref(),
+        "--data".as_ref(),
+        data.as_os_str(),
+        "--config".as_ref(),
+        cfg.as_os_str(),
+    ]);
     // A config check of `score_first_m` (another change) may refuse it first; either way
     // no 0.00 m result is reported as a success.
     assert!(
@@ -231,18 +245,10 @@ fn bad_pdr_and_calibration_configs_are_refused_naming_file_and_field() {
             "min_grid_concentration",
         ),
     ];
-    for (args, field) in runs {
-        let out = wipdr()
-            .arg("--no-cache")
-            .args(&args)
-            .arg("--data")
-            .arg(&dir)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{stderr}");
+    for (mut args, field) in runs {
+        args.extend(["--data".as_ref(), dir.as_os_str()]);
+        let stderr = refused(&args);
         assert!(stderr.contains(field), "{field}: {stderr}");
-        assert!(!stderr.contains("panicked"), "{stderr}");
     }
     assert!(!out_cfg.exists());
 }

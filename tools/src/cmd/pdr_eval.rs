@@ -58,30 +58,40 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
     }
 }
 
-/// The PDR config of `path` (defaults without one), checked: an error names the file and
-/// the field.
-pub(crate) fn read_pdr_config(path: Option<&Path>) -> Result<PdrConfig> {
+/// The config of `path` (defaults without one), checked by `check`, which returns the
+/// offending field and the reason: an error names the file, the field and the reason.
+fn read_checked<T, F>(path: Option<&Path>, check: F) -> Result<T>
+where
+    T: Default + serde::de::DeserializeOwned,
+    F: FnOnce(&T) -> Option<(String, String)>,
+{
     let Some(path) = path else {
-        return Ok(PdrConfig::default());
+        return Ok(T::default());
     };
-    let cfg: PdrConfig = read_config(path)?;
-    if let Err(e) = cfg.validate() {
-        anyhow::bail!("{}: {}: {}", path.display(), e.field, e.reason);
+    let cfg: T = read_config(path)?;
+    if let Some((field, reason)) = check(&cfg) {
+        anyhow::bail!("{}: {field}: {reason}", path.display());
     }
     Ok(cfg)
 }
 
-/// The calibration settings of `path` (defaults without one), checked like
-/// [`read_pdr_config`].
+/// The PDR config of `path` (defaults without one), checked by [`PdrConfig::validate`].
+pub(crate) fn read_pdr_config(path: Option<&Path>) -> Result<PdrConfig> {
+    read_checked(path, |cfg: &PdrConfig| {
+        cfg.validate()
+            .err()
+            .map(|e| (e.field.to_string(), e.reason.to_string()))
+    })
+}
+
+/// The calibration settings of `path` (defaults without one), checked by
+/// [`CalibrationConfig::validate`].
 pub(crate) fn read_calibration(path: Option<&Path>) -> Result<CalibrationConfig> {
-    let Some(path) = path else {
-        return Ok(CalibrationConfig::default());
-    };
-    let cal: CalibrationConfig = read_config(path)?;
-    if let Err((field, reason)) = cal.validate() {
-        anyhow::bail!("{}: {field}: {reason}", path.display());
-    }
-    Ok(cal)
+    read_checked(path, |cal: &CalibrationConfig| {
+        cal.validate()
+            .err()
+            .map(|(field, reason)| (field.to_string(), reason.to_string()))
+    })
 }
 
 /// Reads floor folders (through the cache of this run, `--cache-dir` / `--no-cache`).

@@ -39,7 +39,13 @@ impl PointMassFilter {
         if !self.reporting || self.prob.is_empty() || self.mode.is_none() {
             return None;
         }
-        let o = self.mean_near(self.mode?, self.cfg.estimate_radius_m);
+        let (mode, radius) = (self.mode?, self.cfg.estimate_radius_m);
+        let mean = self.mean_near(mode, radius);
+        let o = if self.cfg.estimate_median {
+            self.median_near(mode, radius, mean)
+        } else {
+            mean
+        };
         let p = Point2::from(o + self.pdr);
         (p.x.is_finite() && p.y.is_finite()).then(|| (p, self.spread_about(o)))
     }

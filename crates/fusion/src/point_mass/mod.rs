@@ -27,9 +27,10 @@
 //! - A floor `recovery` (relative to a uniform spread) is mixed in after each update, so a
 //!   hypothesis killed by a long stay in a shop can come back.
 //!
-//! The estimate is the posterior mean of `o + D` over the cells within `estimate_radius_m` of
-//! the most probable cell (the mean of the dominant mode; a plain mean would sit between two
-//! modes). It is reported from the first Wi-Fi fix on, as for the other schemes (or from a
+//! The estimate is the geometric median of `o + D` over the cells within `estimate_radius_m`
+//! of the most probable cell (`estimate_median`, the default: the point of least expected
+//! error; otherwise their mean, as in [`PointMassConfig::paper`]): the dominant mode's
+//! centre, where a plain mean would sit between two modes. It is reported from the first Wi-Fi fix on, as for the other schemes (or from a
 //! given start, which collapses the prior there).
 //!
 //! Work per input is proportional to the *active* cells: a window bounding the cells above

@@ -195,6 +195,24 @@ fn the_radius_adds_the_bias_share_of_the_learned_fix_error() {
 }
 
 #[test]
+fn the_median_stays_on_a_heavy_mode_that_the_mean_leaves() {
+    let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+    f.lattice = GridSpec::new(Point2::origin(), 1.0, 30, 10, usize::MAX).unwrap();
+    f.prob = vec![0.0; 300];
+    f.active = (0, 29, 0, 9);
+    // 60 % of the mass in one cell, 20 % each in two cells 20 and 25 m away.
+    let (heavy, b, c) = (5 * 30 + 2, 5 * 30 + 22, 5 * 30 + 27);
+    (f.prob[heavy], f.prob[b], f.prob[c]) = (0.6, 0.2, 0.2);
+    let mean = f.mean_near(heavy, 0.0);
+    let median = f.median_near(heavy, 0.0, mean);
+    assert!((mean - f.offset_of(heavy)).norm() > 8.0, "{mean:?}");
+    assert!((median - f.offset_of(heavy)).norm() < 0.05, "{median:?}");
+    // The radius leaves the far cells out: both are the heavy cell then.
+    let near = f.median_near(heavy, 10.0, f.mean_near(heavy, 10.0));
+    assert!((near - f.offset_of(heavy)).norm() < 1e-9, "{near:?}");
+}
+
+#[test]
 fn a_given_start_is_kept_by_a_pdr_walk() {
     let mut f = PointMassFilter::new(
         PointMassConfig::default(),
@@ -289,6 +307,32 @@ proptest! {
         f.mode = None;
         f.choose_mode();
         prop_assert_eq!(f.mode, Some(mode_cell_by_cell(&f)));
+    }
+
+    /// The geometric median is never worse than the mean it starts from in expected
+    /// Euclidean distance (what `estimate_median` reports), within and beyond the radius.
+    #[test]
+    fn the_median_has_no_larger_expected_distance_than_the_mean(
+        (nx, ny, values) in (1usize..25, 1usize..20).prop_flat_map(|(nx, ny)| {
+            (Just(nx), Just(ny), proptest::collection::vec(0u8..6, nx * ny))
+        }),
+        centre in 0.0f64..1.0,
+        radius in prop_oneof![Just(0.0f64), 1.0f64..12.0],
+    ) {
+        let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+        f.lattice = GridSpec::new(Point2::origin(), 1.0, nx, ny, usize::MAX).unwrap();
+        f.prob = values.iter().map(|&v| f64::from(v) / 7.0).collect();
+        f.active = (0, nx - 1, 0, ny - 1);
+        let centre = ((centre * (nx * ny) as f64) as usize).min(nx * ny - 1);
+        let expected_distance = |m: Vector2| {
+            let mut d = 0.0;
+            f.for_each_near(centre, radius, |o, p| d += p * (o - m).norm());
+            d
+        };
+        let mean = f.mean_near(centre, radius);
+        let median = f.median_near(centre, radius, mean);
+        prop_assert!(median.x.is_finite() && median.y.is_finite());
+        prop_assert!(expected_distance(median) <= expected_distance(mean) + 1e-9);
     }
 
     /// Looking a point's raster row and column up separately finds the raster's own cell,
