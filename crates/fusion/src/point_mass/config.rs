@@ -50,8 +50,9 @@ pub struct PointMassConfig {
     /// Report the posterior's geometric median within `estimate_radius_m` of the mode (the
     /// point of least expected error, the metric the evaluation scores) instead of its mean
     /// (true; [`PointMassConfig::paper`]: false, the mean). True since session 16: ILC causal
-    /// 5.05 -> 5.03 m, better or equal on every floor; IPIN causal mean 7.05 unchanged
-    /// (`docs/sweeps/pmf-session16-median.toml`, docs/results/accuracy.md "Sessions 15-16").
+    /// 5.05 -> 5.03 m, better or equal on every floor; IPIN causal mean 7.05 unchanged, its
+    /// EvAAL 9.78 -> 9.82 m slightly worse (`docs/sweeps/pmf-session16-median.toml`,
+    /// docs/results/accuracy.md "Sessions 15-16").
     pub estimate_median: bool,
     /// Standard deviation added (in quadrature, per axis) to the posterior's spread in the
     /// reported covariance, metres: the walker's offset from the placed PDR track (its local
@@ -99,11 +100,22 @@ pub struct PointMassConfig {
     /// [`super::MAX_HEADING_HYPOTHESES`] in all). Empty: one scale.
     pub step_scale_hypotheses: Vec<f64>,
     /// Width (a Gaussian's standard deviation, metres) of the training trails
-    /// ([`crate::trails`]) in the per-step weight; 0 turns the trail prior off (also off when
-    /// the filter is built without trails).
+    /// ([`crate::trails`]) in the per-step weight on every plan; 0 (the default and
+    /// `paper()`): off where the plan has walls (a walkable raster), `planless_trail_sd_m`
+    /// where it has none. Off when the filter is built without trails. With walls the trails
+    /// cost accuracy (ILC five floors, causal, off 0.8: 6 / 10 m 5.26 / 5.18 against 5.03).
     pub trail_sd_m: f64,
+    /// Width of the training trails used when `trail_sd_m` is 0 and the filter has no
+    /// walkable raster (a plan without an outline: the IPIN logfiles, ILC sites read as one
+    /// building), where the trails are the only knowledge of where people walk. Default 6 m
+    /// (sweep `docs/sweeps/pmf-session16-planless-trails.toml`: IPIN causal 7.05 -> 6.78 m,
+    /// EvAAL 9.82 -> 9.43; offline 6.08 -> 5.82, EvAAL 6.70 -> 6.38; ILC sites as buildings
+    /// 6.07 -> 5.51); `paper()`: 0 (off).
+    pub planless_trail_sd_m: f64,
     /// Per-step weight of a hypothesis far from every training trail (relative to 1 on a
-    /// trail): the weight is `off + (1 - off) exp(-d² / 2 trail_sd_m²)`.
+    /// trail): the weight is `off + (1 - off) exp(-d² / 2 sd²)`. Default 0.8 (a gentle pull:
+    /// with 0.5 IPIN causal is 6.69 / EvAAL 9.28 but offline EvAAL 7.03 against 6.38);
+    /// `paper()`: 0.5.
     pub off_trail_likelihood: f64,
     /// Rate of the fast running mean of the fixes' evidence (their likelihood under the
     /// prior), per fix, in `[0, 1]`; 0 turns sensor resetting off. When the fast mean drops
@@ -153,7 +165,8 @@ impl Default for PointMassConfig {
             heading_hypotheses_deg: Vec::new(),
             step_scale_hypotheses: Vec::new(),
             trail_sd_m: 0.0,
-            off_trail_likelihood: 0.5,
+            planless_trail_sd_m: 6.0,
+            off_trail_likelihood: 0.8,
             evidence_fast_rate: 0.0,
             evidence_slow_rate: 0.05,
             max_reset_share: 0.3,
@@ -173,6 +186,8 @@ impl PointMassConfig {
             gap_sd_m: 20.0,
             mode_hysteresis: 0.5,
             estimate_median: false,
+            planless_trail_sd_m: 0.0,
+            off_trail_likelihood: 0.5,
             ..Self::default()
         }
     }
@@ -206,6 +221,7 @@ impl PointMassConfig {
             ("quality_distance", self.quality_distance),
             ("fix_decorrelation_m", self.fix_decorrelation_m),
             ("trail_sd_m", self.trail_sd_m),
+            ("planless_trail_sd_m", self.planless_trail_sd_m),
         ];
         let lattices =
             self.heading_hypotheses_deg.len().max(1) * self.step_scale_hypotheses.len().max(1);

@@ -130,13 +130,26 @@ impl PointMassFilter {
         (share.is_finite() && share > 0.0).then_some(share)
     }
 
+    /// The trails' width in the step weight: `trail_sd_m` when set, else
+    /// `planless_trail_sd_m` when the filter has no walkable raster, else 0 (off).
+    fn trail_sd_m(&self) -> f64 {
+        if self.cfg.trail_sd_m > 0.0 {
+            self.cfg.trail_sd_m
+        } else if self.walkable.is_none() {
+            self.cfg.planless_trail_sd_m
+        } else {
+            0.0
+        }
+    }
+
     /// Multiplies the active cells by the step likelihood at the current displacement (the
     /// walkable class, the trails); the represented total, or `None` when neither is there.
     pub(super) fn weigh_step(&mut self) -> Option<f64> {
-        let trails = self.trails.clone().filter(|_| self.cfg.trail_sd_m > 0.0);
+        let trail_sd = self.trail_sd_m();
+        let trails = self.trails.clone().filter(|_| trail_sd > 0.0);
         let (off, trail_inv) = (
             self.cfg.off_trail_likelihood,
-            1.0 / (2.0 * self.cfg.trail_sd_m * self.cfg.trail_sd_m),
+            1.0 / (2.0 * trail_sd * trail_sd),
         );
         let trail_weight = |pos: Point2| match &trails {
             Some(t) => {

@@ -30,8 +30,9 @@
 //! The estimate is the geometric median of `o + D` over the cells within `estimate_radius_m`
 //! of the most probable cell (`estimate_median`, the default: the point of least expected
 //! error; otherwise their mean, as in [`PointMassConfig::paper`]): the dominant mode's
-//! centre, where a plain mean would sit between two modes. It is reported from the first Wi-Fi fix on, as for the other schemes (or from a
-//! given start, which collapses the prior there).
+//! centre, where a plain mean would sit between two modes. It is reported from the first
+//! Wi-Fi fix on, as for the other schemes (or from a given start, which collapses the prior
+//! there).
 //!
 //! Work per input is proportional to the *active* cells: a window bounding the cells above
 //! the floor, the whole plan early in a walk, a few hundred cells once the filter has
@@ -65,7 +66,8 @@
 //! mode search and the estimate), `gap` (the coverage-gap raster), `fuser` (the step and
 //! Wi-Fi likelihoods behind [`Fuser`]), `smoother` (forward-backward smoothing of a whole
 //! walk on the lattice, [`PointMassFilter::smooth_walk`]), `mixture` (one lattice per PDR
-//! heading-bias and step-scale hypothesis, weighed by evidence, [`PointMassMixture`]) and the tests.
+//! heading-bias and step-scale hypothesis, weighed by evidence, [`PointMassMixture`]) and the
+//! tests.
 
 mod config;
 mod fuser;
@@ -239,8 +241,9 @@ impl PointMassFilter {
         self.log_evidence
     }
 
-    /// Adds the training trails ([`crate::trails`]): with `trail_sd_m > 0`, each step weighs
-    /// every hypothesis by its position's distance to the nearest trail.
+    /// Adds the training trails ([`crate::trails`]): with `trail_sd_m > 0` (or, on a plan
+    /// without walls, `planless_trail_sd_m > 0`), each step weighs every hypothesis by its
+    /// position's distance to the nearest trail.
     pub fn with_trails(mut self, trails: Option<Arc<TrailRaster>>) -> Self {
         self.trails = trails;
         self

@@ -145,25 +145,33 @@ impl PointMassFilter {
         // A cell closer than this to the iterate counts at this distance (Weiszfeld's step is
         // undefined at a data point).
         let near = 1e-2 * self.cfg.cell_m;
+        // Each pass also prices the iterate (its expected distance); an iterate no cheaper than
+        // the one before ends the search with that one, so the result is never worse than
+        // `start` (the clamp can step off a cell that is itself the median).
+        let (mut best, mut best_cost) = (start, f64::INFINITY);
         let mut m = start;
-        for _ in 0..ROUNDS {
-            let (mut sum, mut w) = (Vector2::zeros(), 0.0);
+        let mut converged = false;
+        for round in 0..=ROUNDS {
+            let (mut sum, mut w, mut cost) = (Vector2::zeros(), 0.0, 0.0);
             self.for_each_near(centre, radius, |o, p| {
-                let k = p / (o - m).norm().max(near);
+                let d = (o - m).norm();
+                cost += p * d;
+                let k = p / d.max(near);
                 sum += k * o;
                 w += k;
             });
-            if !(w > 0.0 && w.is_finite()) {
-                return m;
-            }
-            let next = sum / w;
-            let moved = (next - m).norm();
-            m = next;
-            if moved < tolerance {
+            if cost.is_nan() || cost >= best_cost {
                 break;
             }
+            (best, best_cost) = (m, cost);
+            if converged || round == ROUNDS || !(w > 0.0 && w.is_finite()) {
+                break;
+            }
+            let next = sum / w;
+            converged = (next - m).norm() < tolerance;
+            m = next;
         }
-        m
+        best
     }
 
     /// Calls `f(offset, probability)` for every active cell of positive probability within

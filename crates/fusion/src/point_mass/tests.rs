@@ -120,6 +120,15 @@ fn trails_pull_the_placement_onto_where_training_walks_went() {
     let off = run(
         PointMassConfig {
             trail_sd_m: 0.0,
+            planless_trail_sd_m: 0.0,
+            ..on.clone()
+        },
+        Some(raster.clone()),
+    );
+    // `trail_sd_m` 0 on a filter without walls: the planless width (default 6 m) applies.
+    let planless = run(
+        PointMassConfig {
+            trail_sd_m: 0.0,
             ..on
         },
         Some(raster),
@@ -128,6 +137,31 @@ fn trails_pull_the_placement_onto_where_training_walks_went() {
     assert!(with.y.abs() < 1.0, "{with:?}");
     assert_eq!(off, without);
     assert!((with.x - 21.0).abs() < 1.0, "{with:?}");
+    assert!(planless.y < without.y - 0.5, "{planless:?} {without:?}");
+}
+
+#[test]
+fn planless_trails_are_not_used_where_the_plan_has_walls() {
+    // The ring plan has walls: with `trail_sd_m` 0 the planless width must not switch the
+    // trail prior on, so a trail along the bottom corridor changes nothing.
+    let trail = [wipdr_core::Segment {
+        a: Point2::new(1.5, 1.5),
+        b: Point2::new(58.5, 1.5),
+    }];
+    let raster = Arc::new(TrailRaster::new(&trail, 0.5, 10.0).unwrap());
+    let run = |trails: Option<Arc<TrailRaster>>| {
+        let cfg = PointMassConfig::default();
+        assert!(cfg.trail_sd_m == 0.0 && cfg.planless_trail_sd_m > 0.0);
+        let mut f = PointMassFilter::new(cfg, Some(ring_plan()), None, None)
+            .unwrap()
+            .with_trails(trails);
+        f.on_wifi(&fix(0, 10.0, 35.0));
+        for k in 1..=20 {
+            f.on_step(&step(500 * k, std::f64::consts::FRAC_PI_2));
+        }
+        f.estimate().unwrap().position
+    };
+    assert_eq!(run(Some(raster)), run(None));
 }
 
 #[test]
