@@ -103,7 +103,8 @@ pub struct PointMassConfig {
     /// ([`crate::trails`]) in the per-step weight on every plan; 0 (the default and
     /// `paper()`): off where the plan has walls (a walkable raster), `planless_trail_sd_m`
     /// where it has none. Off when the filter is built without trails. With walls the trails
-    /// cost accuracy (ILC five floors, causal, off 0.8: 6 / 10 m 5.26 / 5.18 against 5.03).
+    /// cost accuracy on the ILC floors (sweep `docs/sweeps/pmf-session8-trails.toml`,
+    /// docs/results/accuracy.md "Session 8"; docs/results/trails.md).
     pub trail_sd_m: f64,
     /// Width of the training trails used when `trail_sd_m` is 0 and the filter has no
     /// walkable raster (a plan without an outline: the IPIN logfiles, ILC sites read as one
