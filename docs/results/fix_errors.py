@@ -11,6 +11,11 @@ waypoints), with the truth at each fix interpolated between waypoints:
 2. the fixes' error quantiles, a fit of their distances to two Gaussians and a uniform
    part, and the share of their error variance (per axis, pooled) that is each walk's own mean
    error (a walk-level bias) rather than scatter about it.
+3. per floor, the length of each walk's mean fix error, averaged over the floors' walks
+   weighted by their waypoints: the error of a perfect PDR shape placed by the walk's own
+   fixes (their least-squares translation), a floor for any placement from Wi-Fi alone
+   that walls and the shape's turns would have to beat; beside it, each scheme's mean
+   error over the same walks when the file holds the schemes' per-walk results.
 
 (The other folds' fixes were made with radio maps that include the test walk's fold, which
 can only flatter the bias field.) Needs numpy:
@@ -54,7 +59,8 @@ def main():
     h = float(sys.argv[2]) if len(sys.argv) > 2 else 3.0
     n0 = float(sys.argv[3]) if len(sys.argv) > 3 else 2.0
     with open(sys.argv[1]) as f:
-        walks = json.load(f).get("walk_data")
+        run = json.load(f)
+    walks = run.get("walk_data")
     if not walks:
         sys.exit("no walk_data: run wipdr eval with --json-tracks")
     rows = {}
@@ -103,6 +109,38 @@ def main():
         print(f"walk-level share of the fixes' error variance: {100 * (1 - within / total):.0f} %"
               f" (independent errors would give about {100 * walk_count / len(before_all):.0f} %:"
               " each walk's mean absorbs one fix's share)")
+    walk_bias_floor(walks, run.get("walks", []))
+
+
+def walk_bias_floor(walks, results):
+    """Per floor, the waypoint-weighted mean length of each walk's mean fix error, beside
+    each scheme's waypoint-weighted mean error on those walks."""
+    scored = {}
+    for r in results:
+        scored.setdefault(r["scheme"], {})[r["walk"]] = (r["count"], r["mean"])
+    schemes = sorted(scored)
+    floors = {}
+    for w in walks:
+        err = [np.subtract((x, y), truth) for t, x, y in w["fixes"]
+               if (truth := truth_at(w["waypoints"], t)) is not None]
+        if err:
+            floors.setdefault(w["floor"], []).append((w["walk"], len(w["waypoints"]),
+                                                      float(np.hypot(*np.mean(err, 0)))))
+    print("walk-mean fix error (a Wi-Fi-placed perfect shape), waypoint-weighted; "
+          + ", ".join(f"{s} mean" for s in schemes))
+    pooled = []
+    for floor, rows in sorted(floors.items()) + [("pooled", None)]:
+        rows = rows if rows is not None else pooled
+        weight = sum(n for _, n, _ in rows)
+        line = f"{floor:10s} {len(rows):4d} walks {sum(n * b for _, n, b in rows) / weight:6.2f}"
+        for s in schemes:
+            hit = [(scored[s][k][0], scored[s][k][1]) for k, _, _ in rows if k in scored[s]]
+            count = sum(c for c, _ in hit)
+            if count:
+                line += f"  {s} {sum(c * m for c, m in hit) / count:6.2f}"
+        print(line)
+        if floor != "pooled":
+            pooled += rows
 
 
 if __name__ == "__main__":
