@@ -9,7 +9,8 @@
 //! drift is the same symmetric blur in both directions, so the backward recursion is
 //! `beta_{k-1} = Blur^{b_k}(L_k beta_k)` from a uniform `beta` after the last input, and the
 //! smoothed distribution at `k` is `alpha_k beta_k`. Its estimate is taken as the forward
-//! filter's (mean of the dominant mode, covariance from the spread).
+//! filter's (the geometric median, or the mean, within `estimate_radius_m` of the dominant
+//! mode; covariance from the spread).
 //!
 //! The forward posteriors are kept (as `f32`, the active window only) until the backward
 //! pass meets them; a walk whose windows would exceed [`MAX_STORED_CELLS`] is refused
