@@ -12,7 +12,8 @@ waypoints), with the truth at each fix interpolated between waypoints:
    part, and the share of their error variance (per axis, pooled) that is each walk's own mean
    error (a walk-level bias) rather than scatter about it.
 3. per floor, the length of each walk's mean fix error, averaged over the floors' walks
-   weighted by their waypoints: the error of a perfect PDR shape placed by the walk's own
+   weighted by their scored waypoints (the schemes' `count` when the file holds per-walk
+   results, so both columns weigh a walk alike; else all its waypoints): the error of a perfect PDR shape placed by the walk's own
    fixes (their least-squares translation), a floor for any placement from Wi-Fi alone
    that walls and the shape's turns would have to beat; beside it, each scheme's mean
    error over the same walks when the file holds the schemes' per-walk results.
@@ -113,25 +114,30 @@ def main():
 
 
 def walk_bias_floor(walks, results):
-    """Per floor, the waypoint-weighted mean length of each walk's mean fix error, beside
-    each scheme's waypoint-weighted mean error on those walks."""
+    """Per floor, the mean length of each walk's mean fix error, beside each scheme's mean
+    error on those walks, both weighted by the walk's scored waypoints (the results' `count`;
+    all its waypoints when no result names the walk)."""
     scored = {}
     for r in results:
         scored.setdefault(r["scheme"], {})[r["walk"]] = (r["count"], r["mean"])
     schemes = sorted(scored)
+    counts = {k: c for s in schemes for k, (c, _) in scored[s].items()}
     floors = {}
     for w in walks:
         err = [np.subtract((x, y), truth) for t, x, y in w["fixes"]
                if (truth := truth_at(w["waypoints"], t)) is not None]
         if err:
-            floors.setdefault(w["floor"], []).append((w["walk"], len(w["waypoints"]),
+            weight = counts.get(w["walk"], len(w["waypoints"]))
+            floors.setdefault(w["floor"], []).append((w["walk"], weight,
                                                       float(np.hypot(*np.mean(err, 0)))))
-    print("walk-mean fix error (a Wi-Fi-placed perfect shape), waypoint-weighted; "
+    print("walk-mean fix error (a Wi-Fi-placed perfect shape), weighted by scored waypoints; "
           + ", ".join(f"{s} mean" for s in schemes))
     pooled = []
     for floor, rows in sorted(floors.items()) + [("pooled", None)]:
         rows = rows if rows is not None else pooled
         weight = sum(n for _, n, _ in rows)
+        if weight == 0:
+            continue
         line = f"{floor:10s} {len(rows):4d} walks {sum(n * b for _, n, b in rows) / weight:6.2f}"
         for s in schemes:
             hit = [(scored[s][k][0], scored[s][k][1]) for k, _, _ in rows if k in scored[s]]

@@ -89,6 +89,44 @@ fn walls_and_fixes_find_the_corridor() {
     assert!(f.walkable.as_ref().unwrap().class_at(p) == CellClass::Walkable);
 }
 
+/// The x of the estimate after a walk north along the ring's left corridor (x = 1.5) whose
+/// every fix lies 7 m east of the walker, inside the block.
+fn estimate_x_with_fixes_in_the_block(cfg: PointMassConfig) -> f64 {
+    let mut f = PointMassFilter::new(cfg, Some(ring_plan()), None, None).unwrap();
+    let mut truth = Point2::new(1.5, 5.0);
+    let mut t = 0;
+    f.on_wifi(&fix(t, truth.x + 7.0, truth.y));
+    for k in 0..40 {
+        t += 500;
+        truth += angle::step_displacement(0.7, 0.0);
+        f.on_step(&step(t, 0.0));
+        if k % 4 == 3 {
+            f.on_wifi(&fix(t, truth.x + 7.0, truth.y));
+        }
+    }
+    f.estimate().unwrap().position.x
+}
+
+#[test]
+fn the_shipped_unit_weight_holds_the_corridor_harder_than_the_preset() {
+    // Session 18 made the unit weight 0.65 (the preset keeps 0.8): fixes that keep pointing
+    // into a shop pull the estimate less far off the corridor the walker is in.
+    let shipped = PointMassConfig::default();
+    assert_eq!(shipped.unit_likelihood, 0.65);
+    assert_eq!(PointMassConfig::paper().unit_likelihood, 0.8);
+    let soft = PointMassConfig {
+        unit_likelihood: 0.8,
+        ..shipped.clone()
+    };
+    let (hard_x, soft_x) = (
+        estimate_x_with_fixes_in_the_block(shipped),
+        estimate_x_with_fixes_in_the_block(soft),
+    );
+    // Measured: 0.65 ends at x 2.24 (the corridor is 0-3 m), 0.8 at x 6.94 (in the block).
+    assert!(hard_x < 3.0, "0.65 leaves the corridor: x {hard_x}");
+    assert!(soft_x > 3.0, "0.8 stays in the corridor: x {soft_x}");
+}
+
 #[test]
 fn trails_pull_the_placement_onto_where_training_walks_went() {
     // No plan: one fix 4 m north of the truth, then a walk east along y = 0, where a
