@@ -2,9 +2,14 @@
 //! the hand (compass calibration figure-eights, picking it up, putting it away) are not
 //! steps. Such handling rotates the phone fast in every axis (mean |omega| of 2-7 rad/s over
 //! seconds in the IPIN 2023 logfiles, whose first minute is handling), while a phone carried
-//! in front of a walker turns at well under 1 rad/s. A step is rejected while the smoothed
-//! rotation rate exceeds [`HandlingConfig::max_rotation_rad_s`] (3 rad/s by default;
-//! [`HandlingConfig::off`] in the papers' preset, which have no such gate).
+//! in front of a walker turns at well under 1 rad/s. The gate closes when the smoothed
+//! rotation rate exceeds [`HandlingConfig::max_rotation_rad_s`] (3 rad/s by default); with
+//! [`HandlingConfig::release_rad_s`] set (off by default) it opens again only once the rate
+//! has fallen below that, or [`HandlingConfig::release_hold_s`] after the rate was last above
+//! the maximum: handling slows down between its fast turns, and a single threshold low enough
+//! to catch those slower spells also catches walkers who swing the phone. A step is rejected
+//! while the gate is closed ([`HandlingConfig::off`] in the papers' preset, which have no
+//! such gate).
 
 use serde::{Deserialize, Serialize};
 use wipdr_core::TimestampMs;
@@ -22,6 +27,21 @@ pub struct HandlingConfig {
     /// without the gate and still takes `pmf` 10.61 -> 8.17 m on the IPIN walks (`ekf` 8.05
     /// -> 7.91).
     pub max_rotation_rad_s: Option<f64>,
+    /// Smoothed rotation rate below which a closed gate opens again, rad/s (hysteresis; off
+    /// by default, `None`: the gate opens as soon as the rate is back at or below
+    /// `max_rotation_rad_s`; the papers' preset has no gate, [`HandlingConfig::off`]). At
+    /// most `max_rotation_rad_s`. Measured in session 19 (`docs/sweeps/handling-session19.toml`,
+    /// `docs/results/accuracy.md` "Session 19"): 1.5 takes IPIN causal `pmf` 6.78 -> 6.70 m,
+    /// EvAAL 9.43 -> 9.13 (with `release_hold_s` 8), but drops walking steps of an ILC site2/F3
+    /// walker who handles the phone and then swings it (calibrated PDR p95 there 9.11 ->
+    /// 12.92 m), so it stays an option (`docs/configs/ipin.toml`).
+    pub release_rad_s: Option<f64>,
+    /// Longest time a closed gate stays closed after the rate was last above
+    /// `max_rotation_rad_s`, seconds, even while the rate stays above `release_rad_s` (4 s
+    /// by default): handling pauses between its fast turns for seconds, while a walker who
+    /// swings the phone after handling it keeps a rate above the release for the whole walk
+    /// (an ILC site2/F3 walk lost its steps without this bound).
+    pub release_hold_s: f64,
     /// Time constant of the smoothing, seconds.
     pub tau_s: f64,
 }
@@ -30,6 +50,8 @@ impl Default for HandlingConfig {
     fn default() -> Self {
         Self {
             max_rotation_rad_s: Some(3.0),
+            release_rad_s: None,
+            release_hold_s: 4.0,
             tau_s: 1.0,
         }
     }
@@ -45,10 +67,12 @@ impl HandlingConfig {
     }
 }
 
-/// The smoothed rotation rate of a stream (exponential, time-aware).
+/// The smoothed rotation rate of a stream (exponential, time-aware) and the gate's state.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HandlingGate {
     rate: Option<(TimestampMs, f64)>,
+    closed: bool,
+    last_above: TimestampMs,
 }
 
 impl HandlingGate {
@@ -70,6 +94,22 @@ impl HandlingGate {
             Some(prev) => prev,
             None => (t, norm),
         });
+        let r = self.rate().unwrap_or(0.0);
+        self.closed = match cfg.max_rotation_rad_s {
+            None => false,
+            Some(max) if r > max => {
+                self.last_above = t;
+                true
+            }
+            Some(max) => {
+                let held_s = t.saturating_sub(self.last_above) as f64 / 1000.0;
+                self.closed
+                    && cfg
+                        .release_rad_s
+                        .is_some_and(|release| r >= release.min(max))
+                    && held_s <= cfg.release_hold_s
+            }
+        };
     }
 
     /// The smoothed rotation rate, rad/s (`None` before the first sample).
@@ -77,15 +117,64 @@ impl HandlingGate {
         self.rate.map(|(_, r)| r)
     }
 
-    /// Whether the phone is being handled now (a step now is rejected).
+    /// Whether the phone is being handled now (a step now is rejected): the gate closed
+    /// when the smoothed rate last rose above `max_rotation_rad_s` and has not fallen below
+    /// `release_rad_s` since. Always false when the gate is off.
     pub fn handling(&self, cfg: &HandlingConfig) -> bool {
-        matches!((cfg.max_rotation_rad_s, self.rate()), (Some(max), Some(r)) if r > max)
+        cfg.max_rotation_rad_s.is_some() && self.closed
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_closed_gate_opens_only_below_the_release_rate() {
+        let cfg = HandlingConfig {
+            release_rad_s: Some(1.5),
+            ..HandlingConfig::default()
+        };
+        let mut g = HandlingGate::default();
+        for k in 0..300 {
+            g.push(k * 10, 5.0, &cfg);
+        }
+        assert!(g.handling(&cfg));
+        // Slower handling, between release (1.5) and max (3.0): still closed 3 s on.
+        for k in 300..600 {
+            g.push(k * 10, 2.2, &cfg);
+        }
+        assert!(g.rate().unwrap() < 3.0);
+        assert!(g.handling(&cfg));
+        // Falling below the release opens it.
+        let mut calm = g;
+        for k in 600..1_000 {
+            calm.push(k * 10, 1.0, &cfg);
+        }
+        assert!(!calm.handling(&cfg));
+        // So does staying above the release for longer than the hold (4 s): a walker
+        // swinging the phone after handling it keeps their steps.
+        for k in 600..1_300 {
+            g.push(k * 10, 2.2, &cfg);
+        }
+        assert!((g.rate().unwrap() - 2.2).abs() < 0.01);
+        assert!(!g.handling(&cfg));
+        // The same rate after the gate opened does not close it: 2.2 < max.
+        for k in 2_300..3_300 {
+            g.push(k * 10, 2.2, &cfg);
+        }
+        assert!(!g.handling(&cfg));
+        // No release (the default): the single threshold, open as soon as the rate is below max.
+        let single = HandlingConfig::default();
+        let mut g = HandlingGate::default();
+        for k in 0..300 {
+            g.push(k * 10, 5.0, &single);
+        }
+        for k in 300..1_300 {
+            g.push(k * 10, 2.2, &single);
+        }
+        assert!(!g.handling(&single));
+    }
 
     #[test]
     fn fast_turning_is_handling_and_settles() {

@@ -169,6 +169,25 @@ impl PdrConfig {
                 format!("must be finite and > 0, got {m}"),
             );
         }
+        if let Some(release) = self.handling.release_rad_s {
+            let max = self.handling.max_rotation_rad_s.unwrap_or(f64::INFINITY);
+            if !(release.is_finite() && release >= 0.0 && release <= max) {
+                return bad(
+                    "handling.release_rad_s",
+                    format!(
+                        "must be finite, >= 0 and <= handling.max_rotation_rad_s ({max}), got \
+                         {release}"
+                    ),
+                );
+            }
+        }
+        let hold = self.handling.release_hold_s;
+        if !(hold.is_finite() && hold >= 0.0) {
+            return bad(
+                "handling.release_hold_s",
+                format!("must be finite and >= 0, got {hold}"),
+            );
+        }
         if !(self.handling.tau_s.is_finite() && self.handling.tau_s >= 0.0) {
             return bad(
                 "handling.tau_s",
@@ -727,5 +746,27 @@ mod config_tests {
         assert_eq!(c.validate().unwrap_err().field, "max_step_length");
         c.min_step_length = f64::NAN;
         assert_eq!(c.validate().unwrap_err().field, "min_step_length");
+    }
+
+    #[test]
+    fn a_release_rate_above_the_gate_is_named() {
+        let mut c = PdrConfig::default();
+        c.handling.release_rad_s = Some(3.5);
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.field, "handling.release_rad_s");
+        assert!(e.reason.contains("3.5"), "{}", e.reason);
+        c.handling.release_rad_s = Some(1.5);
+        assert!(c.validate().is_ok());
+        c.handling.release_rad_s = Some(f64::NAN);
+        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        c.handling.release_rad_s = Some(-1.0);
+        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        c.handling.release_rad_s = None;
+        c.handling.release_hold_s = f64::INFINITY;
+        assert_eq!(c.validate().unwrap_err().field, "handling.release_hold_s");
+        // Gate off: a release is accepted (it is not used).
+        c.handling = crate::handling::HandlingConfig::off();
+        c.handling.release_rad_s = Some(2.0);
+        assert!(c.validate().is_ok());
     }
 }
