@@ -181,6 +181,27 @@ impl PdrConfig {
                 );
             }
         }
+        let h = &self.handling;
+        if let Some(t) = h.tumbling_rad_s
+            && !(t.is_finite() && t >= 0.0)
+        {
+            return bad(
+                "handling.tumbling_rad_s",
+                format!("must be finite and >= 0, got {t}"),
+            );
+        }
+        if !(h.max_axis_share.is_finite() && h.max_axis_share > 0.0 && h.max_axis_share <= 1.0) {
+            return bad(
+                "handling.max_axis_share",
+                format!("must be in (0, 1], got {}", h.max_axis_share),
+            );
+        }
+        if !(h.axis_window_s.is_finite() && h.axis_window_s > 0.0) {
+            return bad(
+                "handling.axis_window_s",
+                format!("must be finite and > 0, got {}", h.axis_window_s),
+            );
+        }
         let hold = self.handling.release_hold_s;
         if !(hold.is_finite() && hold >= 0.0) {
             return bad(
@@ -519,8 +540,7 @@ impl Pdr {
                 self.gyro_att.initialise(q);
             }
         }
-        let norm = (s.v[0] * s.v[0] + s.v[1] * s.v[1] + s.v[2] * s.v[2]).sqrt();
-        self.handling.push(s.t, norm, &self.cfg.handling);
+        self.handling.push_vector(s.t, s.v, &self.cfg.handling);
         self.gyro_att.integrate(s.t, s.v, self.acc);
         if let Some(q) = self.gyro_att.orientation() {
             self.tracks[1].update(heading_of(q));
@@ -764,6 +784,15 @@ mod config_tests {
         c.handling.release_rad_s = None;
         c.handling.release_hold_s = f64::INFINITY;
         assert_eq!(c.validate().unwrap_err().field, "handling.release_hold_s");
+        c.handling.release_hold_s = 4.0;
+        c.handling.max_axis_share = 0.0;
+        assert_eq!(c.validate().unwrap_err().field, "handling.max_axis_share");
+        c.handling.max_axis_share = 0.85;
+        c.handling.tumbling_rad_s = Some(f64::NAN);
+        assert_eq!(c.validate().unwrap_err().field, "handling.tumbling_rad_s");
+        c.handling.tumbling_rad_s = Some(1.5);
+        c.handling.axis_window_s = 0.0;
+        assert_eq!(c.validate().unwrap_err().field, "handling.axis_window_s");
         // Gate off: a release is accepted (it is not used).
         c.handling = crate::handling::HandlingConfig::off();
         c.handling.release_rad_s = Some(2.0);
