@@ -14,6 +14,7 @@
 //! while the gate is closed ([`HandlingConfig::off`] in the papers' preset, which have no
 //! such gate).
 
+use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use wipdr_core::TimestampMs;
@@ -35,28 +36,31 @@ pub struct HandlingConfig {
     /// by default, `None`: the gate opens as soon as the rate is back at or below
     /// `max_rotation_rad_s`; the papers' preset has no gate, [`HandlingConfig::off`]). At
     /// most `max_rotation_rad_s`. Measured in session 19 (`docs/sweeps/handling-session19.toml`,
-    /// `docs/results/accuracy.md` "Session 19"): 1.5 takes IPIN causal `pmf` 6.78 -> 6.70 m,
-    /// EvAAL 9.43 -> 9.13 (with `release_hold_s` 8), but drops walking steps of an ILC site2/F3
+    /// `docs/results/accuracy.md` "Session 19"): 1.5 (hold 8 s, before the tumbling test was
+    /// the default) took IPIN causal `pmf` 6.78 -> 6.70 m, EvAAL 9.43 -> 9.13 (6.71 / 9.18
+    /// on top of the tumbling test), but drops walking steps of an ILC site2/F3
     /// walker who handles the phone and then swings it (calibrated PDR p95 there 9.11 ->
     /// 12.92 m), so it stays an option (`docs/configs/ipin.toml`).
     pub release_rad_s: Option<f64>,
     /// Longest time a closed gate stays closed after the rate was last above
     /// `max_rotation_rad_s`, seconds, even while the rate stays above `release_rad_s` (4 s
-    /// by default): handling pauses between its fast turns for seconds, while a walker who
-    /// swings the phone after handling it keeps a rate above the release for the whole walk
-    /// (an ILC site2/F3 walk lost its steps without this bound).
+    /// by default; only used with `release_rad_s`): bounds the steps a walker who swings the
+    /// phone after handling it can lose. Measured in session 19: 4 s did not rescue the ILC
+    /// site2/F3 walker's steps (the calibrated-PDR figures stayed 3.39 / 12.92 m), and on
+    /// IPIN 2 / 4 / 8 s give `pmf` EvAAL 9.57 / 9.38 / 9.13.
     pub release_hold_s: f64,
     /// Smoothed rotation rate above which a step is also rejected when the phone tumbles,
     /// rad/s (1.5 by default since session 19; `None`: no such test, the gate of sessions
     /// 9-18; the papers' preset has no gate). Tumbling = the rotation is not about one axis: the
     /// largest eigenvalue of the gyroscope's second-moment matrix over `axis_window_s` holds
     /// less than `max_axis_share` of its trace. Handling turns the phone about every axis
-    /// (share 0.49 / 0.64 / 0.80 at the 10th / 50th / 90th percentile, IPIN steps before the
+    /// (share 0.50 / 0.64 / 0.80 at the 10th / 50th / 90th percentile, IPIN steps before the
     /// first POSI point above 1.5 rad/s), a swung or turned phone about one (0.89 / 0.93 /
     /// 0.95, ILC walking steps above 1.5 rad/s). Measured in session 19
     /// (`docs/results/accuracy.md` "Session 19"): IPIN causal `pmf` 6.78 -> 6.77 m, EvAAL
-    /// 9.43 -> 9.31, every causal IPIN scheme better (`tcpf` 9.13 -> 8.38); ILC within
-    /// 0.01 m (PDR from the truth 2.78 -> 2.77); IPIN offline `pmf` EvAAL 6.38 -> 6.75.
+    /// 9.43 -> 9.31, every causal IPIN scheme better (`tcpf` 9.13 -> 8.38); every ILC
+    /// scheme within 0.03 m (`pmf` 4.98 unchanged, PDR from the truth 2.78 -> 2.77); IPIN
+    /// offline `pmf` EvAAL 6.38 -> 6.75.
     pub tumbling_rad_s: Option<f64>,
     /// Largest share of the dominant rotation axis at which a fast-turning phone counts as
     /// tumbling (in (0, 1]).
@@ -82,6 +86,61 @@ impl Default for HandlingConfig {
 }
 
 impl HandlingConfig {
+    /// Checks the values a config file could get wrong; the error names the field (under
+    /// `handling`) and the value.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if let Some(m) = self.max_rotation_rad_s
+            && !(m.is_finite() && m > 0.0)
+        {
+            return Err((
+                "handling.max_rotation_rad_s",
+                format!("must be finite and > 0, got {m}"),
+            ));
+        }
+        if let Some(release) = self.release_rad_s {
+            let max = self.max_rotation_rad_s.unwrap_or(f64::INFINITY);
+            if !(release.is_finite() && release >= 0.0 && release <= max) {
+                return Err((
+                    "handling.release_rad_s",
+                    format!(
+                        "must be finite, >= 0 and <= handling.max_rotation_rad_s ({max}), got \
+                         {release}"
+                    ),
+                ));
+            }
+        }
+        if let Some(t) = self.tumbling_rad_s
+            && !(t.is_finite() && t >= 0.0)
+        {
+            return Err((
+                "handling.tumbling_rad_s",
+                format!("must be finite and >= 0, got {t}"),
+            ));
+        }
+        let share = self.max_axis_share;
+        if !(share.is_finite() && share > 0.0 && share <= 1.0) {
+            return Err((
+                "handling.max_axis_share",
+                format!("must be in (0, 1], got {share}"),
+            ));
+        }
+        if !(self.axis_window_s.is_finite() && self.axis_window_s > 0.0) {
+            return Err((
+                "handling.axis_window_s",
+                format!("must be finite and > 0, got {}", self.axis_window_s),
+            ));
+        }
+        for (field, v) in [
+            ("handling.release_hold_s", self.release_hold_s),
+            ("handling.tau_s", self.tau_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((field, format!("must be finite and >= 0, got {v}")));
+            }
+        }
+        Ok(())
+    }
+
     /// No gate: every detected step is kept (the papers' PDR).
     pub fn off() -> Self {
         Self {
@@ -103,13 +162,14 @@ pub struct HandlingGate {
 
 impl HandlingGate {
     /// Feeds a gyroscope vector (rad/s) at `t`: its norm to [`HandlingGate::push`], the
-    /// vector to the rotation-axis test's window. Non-finite vectors are ignored.
+    /// vector to the rotation-axis test's window (kept only while the gate and the test are
+    /// on). Non-finite vectors are ignored.
     pub fn push_vector(&mut self, t: TimestampMs, v: [f64; 3], cfg: &HandlingConfig) {
         if !v.iter().all(|c| c.is_finite()) {
             return;
         }
         self.push(t, (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt(), cfg);
-        if cfg.tumbling_rad_s.is_none() {
+        if cfg.tumbling_rad_s.is_none() || cfg.max_rotation_rad_s.is_none() {
             return;
         }
         self.recent.push_back((t, v));
@@ -124,33 +184,22 @@ impl HandlingGate {
     }
 
     /// Share of the rotation's energy about its dominant axis over the window (the largest
-    /// eigenvalue of the vectors' second-moment matrix over its trace, by power iteration);
-    /// 1 with no rotation in the window.
+    /// eigenvalue of the vectors' second-moment matrix over its trace); 1 with no rotation
+    /// in the window.
     pub fn axis_share(&self) -> f64 {
-        let mut m = [[0.0f64; 3]; 3];
-        for (_, v) in &self.recent {
-            for (a, row) in m.iter_mut().enumerate() {
-                for (b, cell) in row.iter_mut().enumerate() {
-                    *cell += v[a] * v[b];
-                }
-            }
-        }
-        let trace = m[0][0] + m[1][1] + m[2][2];
+        let moment = self
+            .recent
+            .iter()
+            .map(|(_, v)| {
+                let v = Vector3::from(*v);
+                v * v.transpose()
+            })
+            .fold(Matrix3::zeros(), |sum, m| sum + m);
+        let trace = moment.trace();
         if !(trace.is_finite() && trace > 1e-12) {
             return 1.0;
         }
-        let mut x = [1.0, 0.7, 0.4];
-        let mut largest = 0.0;
-        for _ in 0..50 {
-            let y = [0, 1, 2].map(|a| m[a][0] * x[0] + m[a][1] * x[1] + m[a][2] * x[2]);
-            let norm = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
-            if norm.is_nan() || norm <= 1e-300 {
-                break;
-            }
-            largest = norm;
-            x = y.map(|c| c / norm);
-        }
-        (largest / trace).clamp(0.0, 1.0)
+        (moment.symmetric_eigenvalues().max() / trace).clamp(0.0, 1.0)
     }
 
     /// Feeds a gyroscope sample's norm (rad/s) at `t`; non-finite values are ignored.

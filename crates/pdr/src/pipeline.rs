@@ -161,59 +161,8 @@ impl PdrConfig {
                 format!("must be finite and >= min_step_length ({lo}), got {hi}"),
             );
         }
-        if let Some(m) = self.handling.max_rotation_rad_s
-            && !(m.is_finite() && m > 0.0)
-        {
-            return bad(
-                "handling.max_rotation_rad_s",
-                format!("must be finite and > 0, got {m}"),
-            );
-        }
-        if let Some(release) = self.handling.release_rad_s {
-            let max = self.handling.max_rotation_rad_s.unwrap_or(f64::INFINITY);
-            if !(release.is_finite() && release >= 0.0 && release <= max) {
-                return bad(
-                    "handling.release_rad_s",
-                    format!(
-                        "must be finite, >= 0 and <= handling.max_rotation_rad_s ({max}), got \
-                         {release}"
-                    ),
-                );
-            }
-        }
-        let h = &self.handling;
-        if let Some(t) = h.tumbling_rad_s
-            && !(t.is_finite() && t >= 0.0)
-        {
-            return bad(
-                "handling.tumbling_rad_s",
-                format!("must be finite and >= 0, got {t}"),
-            );
-        }
-        if !(h.max_axis_share.is_finite() && h.max_axis_share > 0.0 && h.max_axis_share <= 1.0) {
-            return bad(
-                "handling.max_axis_share",
-                format!("must be in (0, 1], got {}", h.max_axis_share),
-            );
-        }
-        if !(h.axis_window_s.is_finite() && h.axis_window_s > 0.0) {
-            return bad(
-                "handling.axis_window_s",
-                format!("must be finite and > 0, got {}", h.axis_window_s),
-            );
-        }
-        let hold = self.handling.release_hold_s;
-        if !(hold.is_finite() && hold >= 0.0) {
-            return bad(
-                "handling.release_hold_s",
-                format!("must be finite and >= 0, got {hold}"),
-            );
-        }
-        if !(self.handling.tau_s.is_finite() && self.handling.tau_s >= 0.0) {
-            return bad(
-                "handling.tau_s",
-                format!("must be finite and >= 0, got {}", self.handling.tau_s),
-            );
+        if let Err((field, reason)) = self.handling.validate() {
+            return bad(field, reason);
         }
         let d = &self.detector;
         for (field, v) in [
