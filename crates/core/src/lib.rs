@@ -30,6 +30,7 @@ pub mod geo;
 pub mod grid;
 pub mod imu;
 pub mod observation;
+pub mod off;
 pub mod stats;
 pub mod step;
 pub mod survey;

@@ -58,6 +58,8 @@ pub struct EvalConfig {
     /// fitted on the training fingerprints ([`PropagationConfig`]; synthesised points only
     /// where the floor plan is walkable); `None` (default): off. The synthesised points do
     /// not count as coverage for `pmf`'s gap awareness unless `propagation_is_coverage`.
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub propagation: Option<PropagationConfig>,
     /// Count the synthesised points of `propagation` as coverage.
     pub propagation_is_coverage: bool,
@@ -480,6 +482,40 @@ pub(crate) mod tests {
             .collect();
         files.sort();
         files
+    }
+
+    /// A config written to TOML (a sweep's best config, a saved preset) reads back as
+    /// itself: a `None` field whose default is `Some` is written `"off"`, not dropped.
+    #[test]
+    fn presets_survive_a_trip_through_toml() {
+        let mut off = EvalConfig::default();
+        off.pdr.handling.tumbling_rad_s = None;
+        off.radio_map.max_entry_age_ms = None;
+        off.query.max_age_ms = None;
+        for (name, cfg) in [
+            ("default", EvalConfig::default()),
+            ("paper", EvalConfig::paper()),
+            ("off", off),
+        ] {
+            let text = toml::to_string_pretty(&cfg).unwrap();
+            let back = EvalConfig::from_toml(&text, name).unwrap();
+            assert_eq!(back, cfg, "{name}:\n{text}");
+        }
+        let text = "[pdr.handling]\ntumbling_rad_s = \"off\"\n";
+        let cfg = EvalConfig::from_toml(text, "t").unwrap();
+        assert_eq!(cfg.pdr.handling.tumbling_rad_s, None);
+        assert!(EvalConfig::default().pdr.handling.tumbling_rad_s.is_some());
+        let text = "propagation = \"off\"\n[radio_map]\ninterpolation = \"off\"\n";
+        let cfg = EvalConfig::from_toml(text, "t").unwrap();
+        assert!(cfg.propagation.is_none() && cfg.radio_map.interpolation.is_none());
+        // A table onto an "off" base (the paper preset) turns the setting on again.
+        let text = "preset = \"paper\"\n[propagation]\nmin_predicted_dbm = -85.0\n";
+        let cfg = EvalConfig::from_toml(text, "t").unwrap();
+        assert_eq!(cfg.propagation.map(|p| p.min_predicted_dbm), Some(-85.0));
+        let err = EvalConfig::from_toml("[pdr.handling]\ntumbling_rad_s = \"of\"\n", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("tumbling_rad_s"), "{err}");
     }
 
     #[test]

@@ -22,6 +22,8 @@ pub struct QueryFilter {
     /// -75 dBm moving. `None` keeps all.
     pub min_rssi_dbm: Option<f64>,
     /// Drop scan entries older than this relative to the scan time (ms); `None` keeps all.
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub max_age_ms: Option<i64>,
     /// Reject (instead of dropping and counting) invalid RSSI values.
     pub strict: bool,

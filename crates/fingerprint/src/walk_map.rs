@@ -42,6 +42,8 @@ pub enum LabelTime {
 #[serde(default, deny_unknown_fields)]
 pub struct WalkMapConfig {
     /// Drop entries older than this relative to their scan (ms); `None` keeps all.
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub max_entry_age_ms: Option<i64>,
     /// Drop scans whose label time is farther than this from the nearest waypoint (ms);
     /// `None` only requires the label time to lie within the waypoints' span.
@@ -62,7 +64,8 @@ pub struct WalkMapConfig {
     /// Radio-map interpolation (paper 004 §5.3); `None` (default) = the measured points only.
     /// In TOML: `[radio_map.interpolation.along_walk]` and/or
     /// `[radio_map.interpolation.spatial]`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub interpolation: Option<InterpolationConfig>,
 }
 

@@ -31,6 +31,8 @@ pub struct HandlingConfig {
     /// 3.04 -> 3.21 m pooled at 2.0); the default 3.0 leaves every ILC figure as it was
     /// without the gate and still takes `pmf` 10.61 -> 8.17 m on the IPIN walks (`ekf` 8.05
     /// -> 7.91).
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub max_rotation_rad_s: Option<f64>,
     /// Smoothed rotation rate below which a closed gate opens again, rad/s (hysteresis; off
     /// by default, `None`: the gate opens as soon as the rate is back at or below
@@ -41,6 +43,8 @@ pub struct HandlingConfig {
     /// on top of the tumbling test), but drops walking steps of an ILC site2/F3
     /// walker who handles the phone and then swings it (calibrated PDR p95 there 9.11 ->
     /// 12.92 m), so it stays an option (`docs/configs/ipin.toml`).
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub release_rad_s: Option<f64>,
     /// Longest time a closed gate stays closed after the rate was last above
     /// `max_rotation_rad_s`, seconds, even while the rate stays above `release_rad_s` (4 s
@@ -61,6 +65,8 @@ pub struct HandlingConfig {
     /// 9.43 -> 9.31, every causal IPIN scheme better (`tcpf` 9.13 -> 8.38); every ILC
     /// scheme within 0.03 m (`pmf` 4.98 unchanged, PDR from the truth 2.78 -> 2.77); IPIN
     /// offline `pmf` EvAAL 6.38 -> 6.75.
+    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
     pub tumbling_rad_s: Option<f64>,
     /// Largest share of the dominant rotation axis at which a fast-turning phone counts as
     /// tumbling (in (0, 1]).

@@ -170,3 +170,22 @@ impl PositionerConfig {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A config written to TOML reads back as itself: the paper preset's gate is off
+    /// (`None`), written `"off"`, not dropped to come back as the default's 3 rad/s.
+    #[test]
+    fn presets_survive_a_trip_through_toml() {
+        for cfg in [PositionerConfig::default(), PositionerConfig::paper()] {
+            let text = toml::to_string_pretty(&cfg).unwrap();
+            assert_eq!(PositionerConfig::from_toml(&text).unwrap(), cfg, "{text}");
+        }
+        assert_eq!(
+            PositionerConfig::paper().pdr.handling.max_rotation_rad_s,
+            None
+        );
+    }
+}
