@@ -495,11 +495,13 @@ mod tests {
     }
 
     #[test]
-    fn interpolation_is_off_and_unserialised_by_default() {
+    fn interpolation_is_off_by_default_and_written_as_off() {
         let cfg: WalkMapConfig = serde_json::from_str("{}").unwrap();
         assert_eq!(cfg.interpolation, None);
         let json = serde_json::to_string(&WalkMapConfig::default()).unwrap();
-        assert!(!json.contains("interpolation"), "{json}");
+        assert!(json.contains(r#""interpolation":"off""#), "{json}");
+        let back: WalkMapConfig = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.interpolation, None);
         let on: WalkMapConfig = serde_json::from_str(
             r#"{"interpolation": {"spatial": {"radius_m": 3.0, "kernel": {"kind": "inverse_distance", "power": 2.0}}}}"#,
         )
