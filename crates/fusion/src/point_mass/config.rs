@@ -68,6 +68,18 @@ pub struct PointMassConfig {
     /// from the fixes' residuals ([`crate::fix_error`]): where the fixes are worse than on the
     /// ILC floors (the IPIN building), the radius grows with them. Moves no estimate.
     pub radius: crate::fix_error::RadiusConfig,
+    /// Standard deviation added (in quadrature, per axis) to the reported covariance for each
+    /// metre the estimate lies from the radio map's coverage (its nearest reference point;
+    /// the distance counts up to `gap_distance_m` plus two cells), metres per metre: in a
+    /// coverage gap the fixes share a bias the lattice cannot see, so the radius grows there.
+    /// Needs the coverage raster (`gap_distance_m` > 0 and the map's reference points).
+    /// Moves no estimate. 1.0 since session 21 ([`PointMassConfig::paper`]: 0, off): the
+    /// share of scored waypoints inside the 95 % radius went 94.3 -> 95.9 % on the five ILC
+    /// floors (66.7 -> 83.3 % of those 12 m or more from coverage) and 79.8 -> 86.0 % on
+    /// IPIN, the median radius 9.3 -> 9.8 m and 10.9 -> 11.6 m
+    /// (`docs/sweeps/pmf-session21-gap-radius.toml`, docs/results/accuracy.md "Session 21").
+    /// wipdr's own (no paper value).
+    pub gap_radius_sd_per_m: f64,
     /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
     /// matcher's distance unit; 0: every fix trusted alike).
     pub quality_distance: f64,
@@ -159,6 +171,7 @@ impl Default for PointMassConfig {
                 bias_share: PMF_BIAS_SHARE,
                 ..Default::default()
             },
+            gap_radius_sd_per_m: 1.0,
             quality_distance: 0.0,
             quality_softness: 5.0,
             fix_decorrelation_m: 0.0,
@@ -183,8 +196,9 @@ impl PointMassConfig {
     /// `pmf` is wipdr's own scheme, in no paper: its preset is the settings it had before the
     /// five-floor sweeps of session 7 (`wifi_outlier` 0.1, `gap_sd_m` 20 m, `wifi_sd_m` 6 m)
     /// of session 14 (`mode_hysteresis` 0.5), of session 16 (`estimate_median` false: the
-    /// mean), of session 17 (no planless trails) and of session 18 (`unit_likelihood` 0.8),
-    /// which earlier figures in `docs/results/` were measured with.
+    /// mean), of session 17 (no planless trails), of session 18 (`unit_likelihood` 0.8) and
+    /// of session 21 (no gap term in the radius), which earlier figures in `docs/results/`
+    /// were measured with.
     pub fn paper() -> Self {
         Self {
             wifi_sd_m: 6.0,
@@ -195,6 +209,7 @@ impl PointMassConfig {
             planless_trail_sd_m: 0.0,
             off_trail_likelihood: 0.5,
             unit_likelihood: 0.8,
+            gap_radius_sd_per_m: 0.0,
             ..Self::default()
         }
     }
@@ -224,6 +239,7 @@ impl PointMassConfig {
             ("recovery", self.recovery),
             ("estimate_radius_m", self.estimate_radius_m),
             ("sd_floor_m", self.sd_floor_m),
+            ("gap_radius_sd_per_m", self.gap_radius_sd_per_m),
             ("mode_radius_m", self.mode_radius_m),
             ("quality_distance", self.quality_distance),
             ("fix_decorrelation_m", self.fix_decorrelation_m),

@@ -25,6 +25,7 @@ impl Fuser for PointMassFilter {
         let (p, mut covariance) = self.lattice_estimate()?;
         covariance +=
             Matrix2::identity() * (self.cfg.radius.bias_share * self.fix_error.variance());
+        covariance += Matrix2::identity() * self.gap_sd_m_at(p).powi(2);
         crate::kalman::enforce_symmetric_pd(&mut covariance);
         Some(Estimate {
             covariance: Some(covariance),
@@ -34,6 +35,22 @@ impl Fuser for PointMassFilter {
 }
 
 impl PointMassFilter {
+    /// The standard deviation the reported covariance adds per axis at `p` for its distance
+    /// from the radio map's coverage: `gap_radius_sd_per_m` times the distance from `p`'s
+    /// cell to the nearest reference point, capped where the coverage raster's search ends
+    /// (`gap_distance_m` plus two cells). 0 without the raster (no reference points given,
+    /// `gap_distance_m` 0) or with `gap_radius_sd_per_m` 0.
+    pub(super) fn gap_sd_m_at(&self, p: Point2) -> f64 {
+        let per_m = self.cfg.gap_radius_sd_per_m;
+        match &self.gap {
+            Some(g) if per_m > 0.0 => {
+                let cap = self.cfg.gap_distance_m + 2.0 * g.grid.cell_m();
+                per_m * g.distance_at(p, cap)
+            }
+            _ => 0.0,
+        }
+    }
+
     /// The estimate and the lattice's own covariance (without the learned bias share).
     pub(super) fn lattice_estimate(&self) -> Option<(Point2, Matrix2<f64>)> {
         if !self.reporting || self.prob.is_empty() || self.mode.is_none() {

@@ -14,6 +14,10 @@ pub(super) struct GapRaster {
     pub(super) grid: GridSpec,
     /// Per cell (row-major): in a gap.
     pub(super) gap: Vec<bool>,
+    /// Per cell (row-major): the distance from the cell's centre to the nearest reference
+    /// point, metres, where the search reached (up to the gap distance plus two cells);
+    /// infinite beyond.
+    pub(super) distance: Vec<f32>,
 }
 
 impl GapRaster {
@@ -76,10 +80,29 @@ impl GapRaster {
                 }
             }
         }
-        let gap = (0..grid.len())
-            .map(|i| seed[i] == u32::MAX || (centre(i) - seeds[seed[i] as usize]).norm() > distance)
+        let nearest: Vec<f32> = (0..grid.len())
+            .map(|i| {
+                if seed[i] == u32::MAX {
+                    f32::INFINITY
+                } else {
+                    (centre(i) - seeds[seed[i] as usize]).norm() as f32
+                }
+            })
             .collect();
-        Some(Self { grid, gap })
+        let gap = nearest.iter().map(|&d| f64::from(d) > distance).collect();
+        Some(Self {
+            grid,
+            gap,
+            distance: nearest,
+        })
+    }
+
+    /// The distance from `p`'s cell to the nearest reference point, metres, capped at `cap`
+    /// (and `cap` outside the raster or beyond the search).
+    pub(super) fn distance_at(&self, p: Point2, cap: f64) -> f64 {
+        self.grid.cell_of(p).map_or(cap, |(c, r)| {
+            f64::from(self.distance[self.grid.index(c, r)]).min(cap)
+        })
     }
 
     /// Whether `p` is in a gap (everything outside the raster is). The filter looks rows and

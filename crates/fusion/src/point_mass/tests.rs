@@ -267,6 +267,65 @@ fn the_radius_adds_the_bias_share_of_the_learned_fix_error() {
 }
 
 #[test]
+fn the_gap_raster_holds_the_distance_to_the_nearest_point_up_to_its_reach() {
+    let points = vec![Point2::new(10.5, 10.5)];
+    let g = GapRaster::new(
+        &points,
+        1.0,
+        5.0,
+        (Point2::new(0.0, 0.0), Point2::new(40.0, 20.0)),
+    )
+    .unwrap();
+    // Cell centres: (10.5, 10.5) itself, 3 and 4 cells away, and beyond the search
+    // (5 m + two cells), where the cap answers.
+    assert_eq!(g.distance_at(Point2::new(10.5, 10.5), 100.0), 0.0);
+    assert!((g.distance_at(Point2::new(13.5, 10.5), 100.0) - 3.0).abs() < 1e-6);
+    assert!((g.distance_at(Point2::new(13.5, 14.5), 100.0) - 5.0).abs() < 1e-6);
+    assert_eq!(g.distance_at(Point2::new(30.5, 10.5), 7.0), 7.0);
+    assert_eq!(g.distance_at(Point2::new(-50.0, 10.0), 7.0), 7.0);
+    assert!((g.distance_at(Point2::new(13.5, 10.5), 2.0) - 2.0).abs() < 1e-12);
+}
+
+/// The gap term adds `(k d)^2` per axis, d the estimate's distance to coverage: nothing on
+/// a reference point, more the farther the estimate is, nothing when off or without a
+/// coverage raster; the estimate itself never moves.
+#[test]
+fn the_radius_grows_with_the_estimates_distance_from_coverage() {
+    let coverage = Arc::new(vec![Point2::new(0.0, 0.0)]);
+    let run = |k: f64, coverage: Option<Arc<Vec<Point2>>>, x: f64| {
+        let cfg = PointMassConfig {
+            gap_radius_sd_per_m: k,
+            ..PointMassConfig::default()
+        };
+        let mut f = PointMassFilter::new(cfg, None, coverage, None).unwrap();
+        for t in 0..4 {
+            f.on_wifi(&fix(t * 2000, x, 0.0));
+        }
+        let (p, lattice) = f.lattice_estimate().unwrap();
+        let e = f.estimate().unwrap();
+        assert_eq!(e.position, p);
+        let c = e.covariance.unwrap();
+        let bias = f.cfg.radius.bias_share * f.fix_error.variance();
+        (p, c[(0, 0)] - lattice[(0, 0)] - bias, f.gap_sd_m_at(p))
+    };
+    let (p_near, added_near, _) = run(0.5, Some(coverage.clone()), 0.0);
+    let (p_far, added_far, sd_far) = run(0.5, Some(coverage.clone()), 8.0);
+    let (p_off, added_off, _) = run(0.0, Some(coverage.clone()), 8.0);
+    let (_, added_none, _) = run(0.5, None, 8.0);
+    assert!(added_near.abs() < 0.5 * 0.5 * 2.0, "{added_near}");
+    let d = (p_far - Point2::origin()).norm();
+    assert!(d > 5.0, "{p_far:?}");
+    assert!((sd_far - 0.5 * d).abs() < 1.0, "{sd_far} vs {d}");
+    assert!(
+        (added_far - sd_far * sd_far).abs() < 1e-6,
+        "{added_far} {sd_far}"
+    );
+    assert!(added_off.abs() < 1e-9 && added_none.abs() < 1e-9);
+    assert_eq!(p_far, p_off);
+    assert!(p_near.coords.norm() < 1.0);
+}
+
+#[test]
 fn the_median_stays_on_a_heavy_mode_that_the_mean_leaves() {
     let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
     f.lattice = GridSpec::new(Point2::origin(), 1.0, 30, 10, usize::MAX).unwrap();
