@@ -5,10 +5,18 @@
 //! at `T - t` (`T` the latest input time), each step's displacement is negated (heading + pi)
 //! and the Wi-Fi fixes are unchanged. A filter run on it estimates at each time the position
 //! from the inputs *after* it; the forward filter from those up to it. [`combine`] joins the
-//! two: the product of the two Gaussians (information-weighted mean) where both carry a
-//! covariance, the plain mean otherwise (both are then estimates of one position with no
-//! stated confidence). The common prior is counted twice, a small overconfidence the
-//! evaluation's radius coverage measures.
+//! two: the information-weighted mean where both carry a covariance, the plain mean otherwise
+//! (both are then estimates of one position with no stated confidence).
+//!
+//! The joined covariance is covariance intersection's with weight one half (Julier and
+//! Uhlmann 1997): `P = (Pf⁻¹ / 2 + Pb⁻¹ / 2)⁻¹`, twice the Gaussian product's, with the
+//! product's mean. The two directions see disjoint inputs but share the walk's Wi-Fi bias
+//! (a fix error common to the walk: 40 % of the ILC fixes' error variance, docs/results/
+//! accuracy.md "Sessions 15-16") and the common prior; covariance intersection is never
+//! overconfident whatever that correlation, where the product, which assumes none, shrank
+//! the radius: session 21 measured the offline 95 % radii of `aws`, `tcpf`, `pf`, `apf`,
+//! `rof` at 80-84 % coverage on IPIN and 91-93 % on the ILC floors with the product, 91-94 %
+//! and 96-97 % with this (docs/results/accuracy.md "Session 21"). No estimate moves.
 
 use nalgebra::Matrix2;
 use wipdr_core::{Point2, StepEvent, TimestampMs, WifiObservation, angle};
@@ -92,7 +100,9 @@ pub fn combine(
     out
 }
 
-/// The product of two Gaussian estimates; the mean without both covariances.
+/// The information-weighted mean of two Gaussian estimates with covariance intersection's
+/// covariance at weight one half (twice the product's; see the module docs); the mean
+/// without both covariances.
 fn fuse(
     a: Point2,
     pa: Option<Matrix2<f64>>,
@@ -104,7 +114,8 @@ fn fuse(
         && let Some(p) = (ia + ib).try_inverse()
     {
         let mean = p * (ia * a.coords + ib * b.coords);
-        let mut p = p;
+        // Covariance intersection, weight 1/2: ((ia + ib) / 2)^-1 = 2 p.
+        let mut p = p * 2.0;
         crate::kalman::enforce_symmetric_pd(&mut p);
         return (Point2::from(mean), Some(p));
     }
@@ -168,6 +179,36 @@ mod tests {
         assert!((out[0].1.x - 9.0).abs() < 1e-9, "{:?}", out[0]);
         // At forward 20 nothing is later: forward alone.
         assert_eq!(out[1].1, Point2::new(0.0, 0.0));
+        // Covariance intersection at weight 1/2: twice the product's (9 x 1 / 10 = 0.9),
+        // and a side standing alone keeps its own.
+        let p = out[0].2.unwrap();
+        assert!((p - Matrix2::identity() * 1.8).norm() < 1e-9, "{p}");
+        assert_eq!(out[1].2, big);
+    }
+
+    proptest::proptest! {
+        /// The joined covariance is symmetric positive definite and never smaller than the
+        /// Gaussian product's (which assumes independent errors): `P - (Pa⁻¹ + Pb⁻¹)⁻¹` is
+        /// positive semi-definite; the mean is finite.
+        #[test]
+        fn the_joined_covariance_is_spd_and_bounds_the_product(
+            sa in 0.1f64..50.0, sb in 0.1f64..50.0, rho in -0.9f64..0.9,
+            ax in -50.0f64..50.0, bx in -50.0f64..50.0,
+        ) {
+            let off = rho * sa;
+            let pa = Matrix2::new(sa, off, off, sa);
+            let pb = Matrix2::identity() * sb;
+            let (m, p) = fuse(Point2::new(ax, 0.0), Some(pa), Point2::new(bx, 0.0), Some(pb));
+            let p = p.unwrap();
+            proptest::prop_assert!((p[(0, 1)] - p[(1, 0)]).abs() < 1e-9);
+            proptest::prop_assert!(p[(0, 0)] > 0.0 && p.determinant() > 0.0);
+            let product = (pa.try_inverse().unwrap() + pb.try_inverse().unwrap())
+                .try_inverse()
+                .unwrap();
+            let gap = p - product;
+            proptest::prop_assert!(gap[(0, 0)] >= -1e-9 && gap.determinant() >= -1e-9);
+            proptest::prop_assert!(m.x.is_finite() && m.y.is_finite());
+        }
     }
 
     #[test]
