@@ -80,16 +80,18 @@ impl GapRaster {
                 }
             }
         }
-        let nearest: Vec<f32> = (0..grid.len())
+        // The gap test on the f64 distance (as before the distances were kept); the kept
+        // distance is f32 (the radius term needs no more).
+        let (gap, nearest): (Vec<bool>, Vec<f32>) = (0..grid.len())
             .map(|i| {
-                if seed[i] == u32::MAX {
-                    f32::INFINITY
+                let d = if seed[i] == u32::MAX {
+                    f64::INFINITY
                 } else {
-                    (centre(i) - seeds[seed[i] as usize]).norm() as f32
-                }
+                    (centre(i) - seeds[seed[i] as usize]).norm()
+                };
+                (d > distance, d as f32)
             })
-            .collect();
-        let gap = nearest.iter().map(|&d| f64::from(d) > distance).collect();
+            .unzip();
         Some(Self {
             grid,
             gap,
