@@ -13,6 +13,7 @@ Standard library only:
 import collections
 import json
 import re
+import statistics
 import sys
 
 EDGES = [3.0, 6.0, 12.0]  # metres from coverage: bins <3, 3-6, 6-12, >=12
@@ -38,12 +39,14 @@ def main():
     data = json.load(open(sys.argv[1]))
     by_group = collections.defaultdict(lambda: [0, 0])
     by_bin = collections.defaultdict(lambda: [0, 0])
+    radii = []
     for w in data["walks"]:
         if w["scheme"] != scheme or not w.get("sd_m"):
             continue
         m = re.search(r"Trial\d+", w["walk"])
         group = m.group(0) if m else w["floor"]
         for err, sd, cov in zip(w["errors"], w["sd_m"], w["coverage_m"]):
+            radii.append(K95 * sd)
             inside = err[1] <= K95 * sd
             for tally in (by_group[group], by_bin[bin_of(cov)]):
                 tally[0] += inside
@@ -60,6 +63,7 @@ def main():
     k = sum(v[0] for v in by_bin.values())
     n = sum(v[1] for v in by_bin.values())
     print(f"  {'all':<28} {100 * k / n:5.1f} %  ({n} points)")
+    print(f"median 95 % radius: {statistics.median(radii):.1f} m")
 
 
 if __name__ == "__main__":

@@ -7,23 +7,17 @@
 
 mod common;
 
-use common::real_data;
+use common::{REAL_FLOORS, real_data, real_floor};
 use wipdr_eval::pipeline::{EvalConfig, FloorInput, evaluate};
-use wipdr_io::cache::read_floor_dir_cached;
-use wipdr_io::floor::ReadOptions;
 
 #[test]
 fn the_shipped_defaults_meet_the_causal_targets_on_the_five_floors() {
     let Some((root, cache)) = real_data() else {
         return;
     };
-    let floors: Vec<FloorInput> = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"]
+    let floors: Vec<FloorInput> = REAL_FLOORS
         .iter()
-        .map(|f| {
-            let data = read_floor_dir_cached(root.join(f), &cache, &ReadOptions::default())
-                .unwrap_or_else(|e| panic!("{f}: {e}"));
-            FloorInput::new(*f, data.into_floor())
-        })
+        .map(|f| real_floor(&root, &cache, f))
         .collect();
     let schemes = ["wifi", "pmf"].map(String::from);
     let report = evaluate(&floors, &EvalConfig::default(), &schemes, &|| {}).unwrap();

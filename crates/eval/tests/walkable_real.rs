@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::real_data;
+use common::{REAL_FLOORS, real_data, real_floor};
 use wipdr_fusion::walkable::{CellClass, WalkableGrid};
 use wipdr_io::cache::read_floor_dir_cached;
 use wipdr_io::floor::ReadOptions;
@@ -14,7 +14,7 @@ fn truth_is_mostly_walkable_on_the_real_floors() {
     let Some((root, cache)) = real_data() else {
         return;
     };
-    for floor in ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"] {
+    for floor in REAL_FLOORS {
         let data =
             read_floor_dir_cached(root.join(floor), &cache, &ReadOptions::default()).unwrap();
         let grid = WalkableGrid::new(&data.plan, 0.5).unwrap();
@@ -54,13 +54,11 @@ fn truth_is_mostly_walkable_on_the_real_floors() {
 /// the static start of paper 001 §3.2 can average).
 #[test]
 fn scans_before_the_first_step_on_the_real_floors() {
-    use wipdr_eval::pipeline::{EvalConfig, FloorInput, prepare};
+    use wipdr_eval::pipeline::{EvalConfig, prepare};
     let Some((root, cache)) = real_data() else {
         return;
     };
-    let data =
-        read_floor_dir_cached(root.join("site1/F1"), &cache, &ReadOptions::default()).unwrap();
-    let floor = FloorInput::new("site1/F1", data.into_floor());
+    let floor = real_floor(&root, &cache, "site1/F1");
     let prepared = prepare(std::slice::from_ref(&floor), &EvalConfig::default()).unwrap();
     let mut histogram = [0usize; 4];
     let mut standing_s = Vec::new();

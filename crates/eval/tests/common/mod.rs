@@ -19,6 +19,17 @@ pub fn fixture_floor() -> FloorInput {
     FloorInput::new("fixture", data.into_floor())
 }
 
+/// The five ILC floors of `../shared/data/ilc20`, as the protocol lists them.
+pub const REAL_FLOORS: [&str; 5] = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"];
+
+/// One real floor (`name` under the ILC root), read through the cache, labelled `name`.
+pub fn real_floor(root: &std::path::Path, cache: &std::path::Path, name: &str) -> FloorInput {
+    let data =
+        wipdr_io::cache::read_floor_dir_cached(root.join(name), cache, &ReadOptions::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    FloorInput::new(name, data.into_floor())
+}
+
 /// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
 pub fn real_data() -> Option<(PathBuf, PathBuf)> {
     let root = PathBuf::from(concat!(
