@@ -1,6 +1,6 @@
 //! The online `Positioner` on a real walk (ILC site1/F1, when `../shared/data` exists; else
 //! the committed synthetic fixture floor): the walk's raw samples pushed one by one, the
-//! radio map and calibration of the walk's protocol fold (default eval config).
+//! site model of the walk's protocol fold (default eval config).
 //!
 //! - `positioner_sample/{ekf,pmf}`: throughput in samples (criterion's time per element is
 //!   the per-sample cost, all sensors and scans averaged).
@@ -13,8 +13,8 @@
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::path::PathBuf;
 use wipdr_eval::fold::{FoldModel, folds_of};
-use wipdr_eval::pipeline::{EvalConfig, FloorEnv, FloorInput};
-use wipdr_positioning::{Positioner, Sample, samples_of};
+use wipdr_eval::pipeline::{EvalConfig, FloorInput};
+use wipdr_positioning::{Sample, StreamSpec, samples_of};
 
 fn floor() -> FloorInput {
     let real = PathBuf::from(concat!(
@@ -50,8 +50,9 @@ fn positioner(c: &mut Criterion) {
         .max_by(|&a, &b| walks[a].duration_s().total_cmp(&walks[b].duration_s()))
         .expect("a walk");
     let walk = &walks[index];
-    let model = FoldModel::build(&floor, folds_of(&floor)[index], &cfg).expect("fold model");
-    let site = model.site(&FloorEnv::new(&floor).site);
+    let model = FoldModel::build(&floor, folds_of(&floor)[index], &cfg)
+        .expect("fold model")
+        .model;
     let samples: Vec<Sample> = samples_of(walk).collect();
     let duration_ms = walk.duration_s() * 1000.0;
     eprintln!(
@@ -60,7 +61,7 @@ fn positioner(c: &mut Criterion) {
         duration_ms / 1000.0,
         samples.len(),
         walk.wifi.len(),
-        model.matcher.map().len()
+        model.radio_map().len()
     );
     for (group, throughput) in [
         (
@@ -76,10 +77,11 @@ fn positioner(c: &mut Criterion) {
         g.sample_size(10);
         g.throughput(throughput);
         for scheme in ["ekf", "pmf"] {
-            let pcfg = cfg.positioner(cfg.scheme(scheme).expect("scheme"), model.pdr);
-            g.bench_with_input(BenchmarkId::from_parameter(scheme), &pcfg, |b, pcfg| {
+            g.bench_with_input(BenchmarkId::from_parameter(scheme), &scheme, |b, scheme| {
                 b.iter(|| {
-                    let mut p = Positioner::new(&model.matcher, &site, pcfg, None).expect("builds");
+                    let mut p = model
+                        .positioner(scheme, &StreamSpec::default())
+                        .expect("builds");
                     let mut estimates = 0usize;
                     for s in &samples {
                         estimates += usize::from(p.push(s).is_some());

@@ -177,7 +177,8 @@ pub fn locate<'py>(
         .collect();
     let track = py
         .detach(|| {
-            let model = FoldModel::build_on(&input, usize::MAX, &training, vec![index], &cfg)?;
+            let model =
+                FoldModel::build_on(&input, usize::MAX, &training, vec![index], &cfg, None)?;
             pipeline::locate_on_model(&input, &model, index, scheme, &cfg)
         })
         .map_err(|e| eval_error(&e))?;

@@ -24,7 +24,7 @@ fn _wipdr(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<walk::PyWalk>()?;
     m.add_class::<floor::PyFloorPlan>()?;
     m.add_class::<floor::PyFloor>()?;
-    m.add_class::<positioner::PyRadioMap>()?;
+    m.add_class::<positioner::PySiteModel>()?;
     m.add_class::<positioner::PyPositioner>()?;
     m.add_class::<positioner::PyEstimate>()?;
     m.add_function(wrap_pyfunction!(walk::read_walk, m)?)?;

@@ -1,5 +1,5 @@
-//! `wipdr.RadioMap`, `wipdr.Positioner` and `wipdr.Estimate`: the online pipeline from
-//! Python, one sample at a time.
+//! `wipdr.SiteModel`, `wipdr.Positioner` and `wipdr.Estimate`: a site learned once (and
+//! saved), and the online pipeline from Python, one sample at a time.
 
 use crate::convert::{config_of, entries_of, f64_rows, scan_of, time_of, to_array};
 use crate::errors::{chain, eval_error, input_error};
@@ -8,34 +8,28 @@ use crate::walk::PyWalk;
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use std::sync::{Arc, Mutex};
-use wipdr_core::{Bssid, Floor as CoreFloor, Point2, TimestampMs};
-use wipdr_eval::coverage::measured_points;
-use wipdr_eval::fold::FoldModel;
+use wipdr_core::{Bssid, Floor as CoreFloor, Point2, TimestampMs, Walk};
 use wipdr_eval::pipeline::{EvalConfig, FloorInput};
 use wipdr_fingerprint::RadioMap;
 use wipdr_fingerprint::radio_map::ReferencePoint;
-use wipdr_positioning::{PositionEstimate, Sample, StreamIdentity};
+use wipdr_positioning::site_model::{
+    Provenance, SiteModel, SiteModelData, TrainingData, measured_points,
+};
+use wipdr_positioning::{PositionEstimate, Sample, Site, StreamIdentity, stream_seed};
 
-/// What a radio map was learned from and with.
-#[derive(Debug, Clone)]
-enum Source {
-    /// Walks (`from_walks`): the model's PDR is calibrated on them when the config said so.
-    Walks { calibrated: bool },
-    /// Survey records (`from_records`): no PDR learned.
-    Records,
-}
-
-/// A radio map and what else the evaluation learns from training walks: where the map has
-/// fingerprints (coverage), where the walks went (trails, for ``pmf``), the PDR calibrated
-/// on them and their barometer on known floors.
-#[pyclass(module = "wipdr", name = "RadioMap", frozen)]
+/// A site learned once: the radio map with floors (interpolated and extended into coverage
+/// gaps as the config says), where it has fingerprints (coverage), where the training walks
+/// went (trails, for ``pmf``), the PDR calibrated on them, their barometer on known floors,
+/// the floor plan and the settings streams run with. Fit it from walks
+/// (:meth:`SiteModel.fit`) or survey records (:meth:`SiteModel.from_records`), save it
+/// (:meth:`SiteModel.save`) and load it anywhere (:meth:`SiteModel.load`): the same file
+/// ``wipdr fit`` writes and ``wipdr locate --model`` reads.
+#[pyclass(module = "wipdr", name = "SiteModel", frozen)]
 #[derive(Debug)]
-pub struct PyRadioMap {
-    model: FoldModel,
-    map: Arc<RadioMap>,
-    /// The place the walks were recorded in (plan, WGS84 frame; no walks kept).
-    place: FloorInput,
-    source: Source,
+pub struct PySiteModel {
+    model: SiteModel,
+    /// Whether the model's PDR was calibrated on training walks.
+    calibrated: bool,
 }
 
 /// `walks` (a list of `Walk` or a `Floor`) as a floor of those walks, with its plan and frame.
@@ -63,23 +57,50 @@ fn floor_of(walks: &Bound<'_, PyAny>, floor_plan: Option<&PyFloorPlan>) -> PyRes
     ))
 }
 
-/// The floor's plan and frame without its walks.
-fn place_of(floor: &FloorInput) -> FloorInput {
-    let f = &floor.data;
-    let mut place = CoreFloor::new(f.name.clone(), f.plan.clone(), Vec::new());
-    place.geo_frame = f.geo_frame;
-    FloorInput::new(floor.label.clone(), place)
+impl PySiteModel {
+    fn fit_walks(
+        py: Python<'_>,
+        walks: &Bound<'_, PyAny>,
+        config: Option<&Bound<'_, PyAny>>,
+        floor_plan: Option<PyFloorPlan>,
+    ) -> PyResult<Self> {
+        let cfg = config_of(config)?;
+        let floor = floor_of(walks, floor_plan.as_ref())?;
+        if floor.data.walks.is_empty() {
+            return Err(input_error("SiteModel.fit: no walks"));
+        }
+        let model = py
+            .detach(|| {
+                let training: Vec<&Walk> = floor.data.walks.iter().collect();
+                wipdr_eval::fold::fit_site(&floor, usize::MAX, &training, &cfg, None)
+            })
+            .map_err(|e| eval_error(&e))?;
+        Ok(Self {
+            model,
+            calibrated: cfg.calibrate_pdr,
+        })
+    }
 }
 
 #[pymethods]
-impl PyRadioMap {
-    /// Learns from training ``walks`` (a list of :class:`Walk` or a :class:`Floor`) what
-    /// one fold of the evaluation learns from its training walks: the radio map (each scan
-    /// at the position interpolated between the waypoints around it; ``[radio_map]`` of
-    /// ``config``), its coverage, the walks' trails, the PDR calibration
-    /// (``calibrate_pdr``) and the barometric references. ``config`` as in
-    /// :func:`evaluate`; ``floor_plan`` replaces the floor's plan (for the path-loss
-    /// extension's walkable test).
+impl PySiteModel {
+    /// Learns a site from training ``walks`` (a list of :class:`Walk` or a :class:`Floor`):
+    /// what one fold of the evaluation learns from its training walks, with the same code.
+    /// ``config`` as in :func:`evaluate` (its radio map, extension, calibration, positioner
+    /// and scheme settings); ``floor_plan`` replaces the floor's plan (walls, walkable
+    /// space, the path-loss extension's walkable test).
+    #[staticmethod]
+    #[pyo3(signature = (walks, config=None, floor_plan=None))]
+    fn fit(
+        py: Python<'_>,
+        walks: &Bound<'_, PyAny>,
+        config: Option<&Bound<'_, PyAny>>,
+        floor_plan: Option<PyFloorPlan>,
+    ) -> PyResult<Self> {
+        Self::fit_walks(py, walks, config, floor_plan)
+    }
+
+    /// The former name of :meth:`SiteModel.fit` (``RadioMap.from_walks``), kept as an alias.
     #[staticmethod]
     #[pyo3(signature = (walks, config=None, floor_plan=None))]
     fn from_walks(
@@ -88,36 +109,54 @@ impl PyRadioMap {
         config: Option<&Bound<'_, PyAny>>,
         floor_plan: Option<PyFloorPlan>,
     ) -> PyResult<Self> {
-        let cfg = config_of(config)?;
-        let floor = floor_of(walks, floor_plan.as_ref())?;
-        let n = floor.data.walks.len();
-        if n == 0 {
-            return Err(input_error("RadioMap.from_walks: no walks"));
-        }
+        Self::fit_walks(py, walks, config, floor_plan)
+    }
+
+    /// Reads a site model file (``wipdr fit``'s output, or :meth:`SiteModel.save`'s).
+    #[staticmethod]
+    fn load(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Self> {
         let model = py
-            .detach(|| {
-                FoldModel::build_on(
-                    &floor,
-                    usize::MAX,
-                    &(0..n).collect::<Vec<_>>(),
-                    Vec::new(),
-                    &cfg,
-                )
-            })
-            .map_err(|e| eval_error(&e))?;
+            .detach(|| SiteModel::load(&path))
+            .map_err(|e| input_error(chain(&e)))?;
         Ok(Self {
-            map: Arc::new(model.matcher.map().clone()),
             model,
-            place: place_of(&floor),
-            source: Source::Walks {
-                calibrated: cfg.calibrate_pdr,
-            },
+            calibrated: true,
         })
     }
 
-    /// A radio map from survey records: ``positions`` ``(n, 2)`` ``x, y`` or ``(n, 3)``
+    /// Writes the model to ``path`` (a checked binary file; see ``docs/guide.md``).
+    fn save(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
+        py.detach(|| self.model.save(&path))
+            .map_err(|e| input_error(chain(&e)))
+    }
+
+    /// The site's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.model.name().to_string()
+    }
+
+    /// The building's floors (sorted; empty for one floor without numbers).
+    #[getter]
+    fn building_floors(&self) -> Vec<i32> {
+        self.model.data().floors.clone()
+    }
+
+    /// Where the model came from, as a dict (wipdr version, input files, counts).
+    #[getter]
+    fn provenance<'py>(&self, py: Python<'py>) -> PyResult<Py<PyAny>> {
+        let text = serde_json::to_string(&self.model.data().provenance)
+            .map_err(|e| input_error(e.to_string()))?;
+        Ok(py
+            .import("json")?
+            .getattr("loads")?
+            .call1((text,))?
+            .unbind())
+    }
+
+    /// A site model from survey records: ``positions`` ``(n, 2)`` ``x, y`` or ``(n, 3)``
     /// ``x, y, floor``, and for each position the list of ``(bssid, rssi_dbm)`` heard there.
-    /// ``config``'s ``[radio_map.radio]`` sets the value of APs not heard.
+    /// ``config``'s ``[radio_map.radio]`` sets the value of APs not heard; no PDR is learned.
     #[staticmethod]
     #[pyo3(signature = (positions, scans, config=None))]
     fn from_records(
@@ -136,7 +175,7 @@ impl PyRadioMap {
         let a = f64_rows(positions, if cols == 3 { 3 } else { 2 }, "positions")?;
         if a.nrows() != scans.len() {
             return Err(input_error(format!(
-                "RadioMap.from_records: {} positions but {} scans",
+                "SiteModel.from_records: {} positions but {} scans",
                 a.nrows(),
                 scans.len()
             )));
@@ -167,61 +206,72 @@ impl PyRadioMap {
             records.push((point, heard));
         }
         let map = RadioMap::from_records(records, cfg.radio_map.radio)
-            .map_err(|e| input_error(format!("RadioMap.from_records: {e}")))?;
-        let coverage = Arc::new(map.points().iter().map(|p| p.position).collect());
-        let measured = Arc::new(measured_points(&map));
+            .map_err(|e| input_error(format!("SiteModel.from_records: {e}")))?;
         let plan = crate::floor::plan_around(map.points().iter().map(|p| p.position))?;
-        let map = Arc::new(map);
-        let matcher = cfg
-            .matcher
-            .build(map.clone())
-            .map_err(|e| input_error(format!("RadioMap.from_records: matcher: {e}")))?;
+        let site = cfg.site_config();
+        let mut floors: Vec<i32> = map.points().iter().filter_map(|p| p.floor).collect();
+        floors.sort_unstable();
+        floors.dedup();
+        let mut positioner = site.positioner;
+        positioner.floor.fixes_across_floors =
+            Some(positioner.floor.fixes_across_floors.unwrap_or(false));
+        let data = SiteModelData {
+            name: "records".into(),
+            config: positioner,
+            schemes: site.schemes,
+            measured: measured_points(&map),
+            provenance: Provenance::of(&TrainingData::default(), &map),
+            radio_map: map,
+            coverage_includes_extension: false,
+            trail_segments: Vec::new(),
+            pressure_references: Vec::new(),
+            plan: Some(plan),
+            geo_frame: None,
+            floors,
+        };
+        let model = SiteModel::from_data(data, None)
+            .map_err(|e| input_error(format!("SiteModel.from_records: {e}")))?;
         Ok(Self {
-            model: FoldModel {
-                fold: usize::MAX,
-                matcher,
-                pdr: cfg.pdr,
-                coverage,
-                measured,
-                trails: None,
-                test_walks: Vec::new(),
-                pressure_references: Arc::new(Vec::new()),
-            },
-            map,
-            place: FloorInput::new("records", CoreFloor::new("records", plan, Vec::new())),
-            source: Source::Records,
+            model,
+            calibrated: false,
         })
     }
 
     /// Number of reference points.
     fn __len__(&self) -> usize {
-        self.map.len()
+        self.model.radio_map().len()
     }
 
     /// Number of access points.
     #[getter]
     fn n_aps(&self) -> usize {
-        self.map.n_aps()
+        self.model.radio_map().n_aps()
     }
 
     /// Reference point positions, ``(n, 2)`` float64 ``x, y``.
     #[getter]
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let p = self.map.points();
+        let p = self.model.radio_map().points();
         to_array(py, 2, p.iter().map(|p| vec![p.position.x, p.position.y]))
     }
 
     /// Each reference point's floor (None where unknown).
     #[getter]
     fn floors(&self) -> Vec<Option<i32>> {
-        self.map.points().iter().map(|p| p.floor).collect()
+        self.model
+            .radio_map()
+            .points()
+            .iter()
+            .map(|p| p.floor)
+            .collect()
     }
 
     fn __repr__(&self) -> String {
         format!(
-            "RadioMap({} points, {} APs)",
-            self.map.len(),
-            self.map.n_aps()
+            "SiteModel({:?}: {} points, {} APs)",
+            self.model.name(),
+            self.model.radio_map().len(),
+            self.model.radio_map().n_aps()
         )
     }
 }
@@ -307,23 +357,24 @@ struct Stream {
 
 #[pymethods]
 impl PyPositioner {
-    /// A positioner on ``radio_map`` running ``scheme`` (``wifi``, ``pdr``, ``ekf``,
+    /// A positioner on site ``model`` running ``scheme`` (``wifi``, ``pdr``, ``ekf``,
     /// ``aekf``, ``akf``, ``rkf``, ``arkf``, ``aws``, ``tcpf``, ``pf``, ``apf``, ``rof``,
-    /// ``pmf`` or a ``[schemes.LABEL]`` of ``config``). ``config`` as in :func:`evaluate`
-    /// (its ``matcher``, ``query``, ``pdr``, scheme, ``map_matching``, ``static_start``,
-    /// ``floor`` and ``seed``); the PDR calibrated by :meth:`RadioMap.from_walks` is used
-    /// when it calibrated one. ``floor_plan`` (default: the training floor's plan) gives
-    /// walls and walkable space. ``stream_id`` is mixed into the seed as the evaluation
-    /// does with the walk id; ``start`` = ``(t_ms, x, y)`` a known start (samples before
-    /// ``t_ms`` only warm the PDR up); ``identity`` = ``(phone_model, start_unix_ms)`` lets
-    /// the floor estimate use the training walks' barometer.
+    /// ``pmf`` or a ``[schemes.LABEL]`` of the model's config). ``config`` (as in
+    /// :func:`evaluate`) overrides the model's settings for this stream (its ``matcher``,
+    /// ``query``, ``pdr``, schemes, ``map_matching``, ``static_start``, ``floor`` and
+    /// ``seed``); the PDR calibrated by :meth:`SiteModel.fit` is kept when it calibrated one.
+    /// ``floor_plan`` (default: the model's plan) gives walls and walkable space.
+    /// ``stream_id`` is mixed into the seed as the evaluation does with the walk id;
+    /// ``start`` = ``(t_ms, x, y)`` a known start (samples before ``t_ms`` only warm the PDR
+    /// up); ``identity`` = ``(phone_model, start_unix_ms)`` lets the floor estimate use the
+    /// training walks' barometer.
     #[new]
-    #[pyo3(signature = (radio_map, scheme="ekf", config=None, floor_plan=None, *,
+    #[pyo3(signature = (model, scheme="ekf", config=None, floor_plan=None, *,
         stream_id="", start=None, identity=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
-        radio_map: &PyRadioMap,
+        model: &PySiteModel,
         scheme: &str,
         config: Option<&Bound<'_, PyAny>>,
         floor_plan: Option<PyFloorPlan>,
@@ -331,25 +382,7 @@ impl PyPositioner {
         start: Option<(Bound<'_, PyAny>, f64, f64)>,
         identity: Option<(String, Bound<'_, PyAny>)>,
     ) -> PyResult<Self> {
-        let cfg: EvalConfig = config_of(config)?;
-        let scheme_cfg = cfg.scheme(scheme).map_err(|e| eval_error(&e))?;
-        let mut model = radio_map.model.clone();
-        model.matcher = cfg
-            .matcher
-            .build(radio_map.map.clone())
-            .map_err(|e| input_error(format!("Positioner: matcher: {e}")))?;
-        let calibrated = matches!(radio_map.source, Source::Walks { calibrated: true });
-        if !calibrated {
-            model.pdr = cfg.pdr;
-        }
-        let place = match floor_plan {
-            Some(plan) => {
-                let mut f = (*radio_map.place.data).clone();
-                f.plan = plan.inner;
-                FloorInput::new(radio_map.place.label.clone(), f)
-            }
-            None => radio_map.place.clone(),
-        };
+        let site_model = &model.model;
         let start = match start {
             Some((t, x, y)) => {
                 let t = time_of(&t, "start")?;
@@ -361,24 +394,68 @@ impl PyPositioner {
             None => None,
         };
         let identity = match identity {
-            Some((model, t)) => Some(StreamIdentity {
-                model,
+            Some((phone, t)) => Some(StreamIdentity {
+                model: phone,
                 start_unix_ms: time_of(&t, "identity start_unix_ms")?,
             }),
             None => None,
         };
+        // The stream's settings: the model's, or `config`'s with the model's calibrated PDR
+        // and floor resolution.
+        let (pcfg, matcher) = match config {
+            None => {
+                let pcfg = site_model
+                    .positioner_config(scheme, stream_seed(site_model.config().seed, stream_id))
+                    .map_err(|e| input_error(chain(&e)))?;
+                (pcfg, site_model.matcher().clone())
+            }
+            Some(c) => {
+                let cfg: EvalConfig = config_of(Some(c))?;
+                let scheme_cfg = cfg.scheme(scheme).map_err(|e| eval_error(&e))?;
+                let pdr = if model.calibrated {
+                    site_model.config().pdr
+                } else {
+                    cfg.pdr
+                };
+                let mut pcfg = cfg.positioner(scheme_cfg, pdr);
+                pcfg.seed = stream_seed(cfg.seed, stream_id);
+                pcfg.floor.fixes_across_floors = Some(
+                    pcfg.floor
+                        .fixes_across_floors
+                        .unwrap_or(site_model.data().geo_frame.is_some()),
+                );
+                let matcher = if pcfg.matcher == site_model.config().matcher {
+                    site_model.matcher().clone()
+                } else {
+                    pcfg.matcher
+                        .build(Arc::new(site_model.radio_map().clone()))
+                        .map_err(|e| input_error(format!("Positioner: matcher: {e}")))?
+                };
+                (pcfg, matcher)
+            }
+        };
         let positioner = py
             .detach(|| {
-                model.positioner(
-                    &place,
-                    scheme_cfg,
-                    &cfg,
-                    stream_id,
-                    identity,
+                let site = match &floor_plan {
+                    Some(plan) => Site {
+                        coverage: site_model.site().coverage.clone(),
+                        trails: site_model.site().trails.clone(),
+                        ..Site::from_plan(Some(&plan.inner))
+                    },
+                    None => site_model.site().clone(),
+                };
+                let mut p = wipdr_positioning::Positioner::from_parts(
+                    &matcher,
+                    &site,
+                    &pcfg,
                     start.map(|(_, p)| p),
-                )
+                )?;
+                if let Some(id) = identity {
+                    p.set_pressure_references(site_model.pressure_references().clone(), id);
+                }
+                Ok::<_, wipdr_positioning::PositioningError>(p)
             })
-            .map_err(|e| eval_error(&e))?;
+            .map_err(|e| input_error(chain(&e)))?;
         let mut track = Vec::new();
         if let (Some((t, _)), Some(mut e)) = (start, positioner.estimate()) {
             e.t = t;

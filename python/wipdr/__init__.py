@@ -8,8 +8,10 @@ out, every computation in Rust.
   own arrays).
 - :func:`evaluate`: the evaluation protocol of ``wipdr eval``; returns the document
   ``wipdr eval --json`` writes.
-- :class:`RadioMap`, :class:`Positioner`: position a stream one sample at a time;
-  :func:`locate`: one walk as ``wipdr locate`` does.
+- :class:`SiteModel`: a site learned once from walks or survey records, saved and loaded
+  (the file ``wipdr fit`` writes); :class:`Positioner`: position a stream on it one sample at
+  a time; :func:`locate`: one walk as ``wipdr locate`` does. ``RadioMap`` is the former name
+  of :class:`SiteModel` (``RadioMap.from_walks`` = :meth:`SiteModel.fit`), kept as an alias.
 - Errors: :class:`WipdrError` and its subclasses (:mod:`wipdr.errors`).
 """
 
@@ -20,13 +22,16 @@ from wipdr._wipdr import (
     Floor,
     FloorPlan,
     Positioner,
-    RadioMap,
+    SiteModel,
     Walk,
     evaluate,
     locate,
     read_floor,
     read_walk,
 )
+
+#: The former name of :class:`SiteModel`.
+RadioMap = SiteModel
 
 __all__ = [
     "SCHEMES",
@@ -38,6 +43,7 @@ __all__ = [
     "InputError",
     "Positioner",
     "RadioMap",
+    "SiteModel",
     "Walk",
     "WipdrError",
     "evaluate",

@@ -106,21 +106,38 @@ class Floor:
     def skipped_walks(self) -> List[Tuple[str, str]]: ...
     def __len__(self) -> int: ...
 
-class RadioMap:
-    """A radio map plus what the evaluation learns from training walks."""
+class SiteModel:
+    """A site learned once (radio map, coverage, trails, calibrated PDR, barometric
+    references, plan, settings); saved and loaded as the file ``wipdr fit`` writes."""
 
+    @staticmethod
+    def fit(
+        walks: Union[Sequence[Walk], Floor],
+        config: Config = None,
+        floor_plan: Optional[FloorPlan] = None,
+    ) -> "SiteModel": ...
     @staticmethod
     def from_walks(
         walks: Union[Sequence[Walk], Floor],
         config: Config = None,
         floor_plan: Optional[FloorPlan] = None,
-    ) -> "RadioMap": ...
+    ) -> "SiteModel":
+        """The former name of :meth:`fit`."""
     @staticmethod
     def from_records(
         positions: npt.ArrayLike,
         scans: Sequence[Sequence[ScanEntry]],
         config: Config = None,
-    ) -> "RadioMap": ...
+    ) -> "SiteModel": ...
+    @staticmethod
+    def load(path: PathLike) -> "SiteModel": ...
+    def save(self, path: PathLike) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def building_floors(self) -> List[int]: ...
+    @property
+    def provenance(self) -> Dict[str, Any]: ...
     def __len__(self) -> int: ...
     @property
     def n_aps(self) -> int: ...
@@ -128,6 +145,7 @@ class RadioMap:
     def positions(self) -> Array: ...
     @property
     def floors(self) -> List[Optional[int]]: ...
+
 
 class Estimate:
     """One estimate of a Positioner."""
@@ -150,7 +168,7 @@ class Positioner:
 
     def __init__(
         self,
-        radio_map: RadioMap,
+        model: SiteModel,
         scheme: str = "ekf",
         config: Config = None,
         floor_plan: Optional[FloorPlan] = None,

@@ -57,7 +57,11 @@ enum Command {
     Eval(cmd::eval::Args),
     /// The report page of a saved run: `wipdr report RESULTS.json --out FILE.html`.
     Report(cmd::report::Args),
-    /// Position one walk by streaming its samples through the online Positioner.
+    /// Learn a site once (radio map, calibration, references) and save it as a model file.
+    Fit(cmd::fit::Args),
+    /// Write a recorded walk as a plain sample stream (CSV), the format `locate` reads.
+    ExportStream(cmd::export_stream::Args),
+    /// Position phone logs with a site model, streaming their samples through the Positioner.
     Locate(cmd::locate::Args),
     /// Run the evaluation on the embedded synthetic fixtures, in seconds.
     Demo(cmd::demo::Args),
@@ -100,6 +104,8 @@ fn main() -> std::process::ExitCode {
         Command::PdrEval(a) => cmd::pdr_eval::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Report(a) => cmd::report::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
+        Command::ExportStream(a) => cmd::export_stream::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),

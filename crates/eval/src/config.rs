@@ -13,6 +13,7 @@ use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::static_start::StaticStartConfig;
 use wipdr_pdr::PdrConfig;
 use wipdr_pdr::calibrate::CalibrationConfig;
+use wipdr_positioning::site_model::{SiteConfig, SiteFitConfig};
 use wipdr_positioning::{FloorConfig, PositionerConfig};
 
 /// Everything an evaluation can be told; every field has a default. Read it with
@@ -278,6 +279,28 @@ impl EvalConfig {
             static_start: self.static_start.clone(),
             floor: self.floor,
             seed: self.seed,
+        }
+    }
+
+    /// How a site model is fit and run under this config ([`SiteModel::fit`]): the radio
+    /// map, extension and calibration settings, the positioner (its scheme `ekf`'s settings;
+    /// a stream names its own), and the scheme table.
+    ///
+    /// [`SiteModel::fit`]: wipdr_positioning::SiteModel::fit
+    pub fn site_config(&self) -> SiteConfig {
+        let default_scheme = self
+            .scheme("ekf")
+            .unwrap_or_else(|_| SchemeConfig::Ekf(Default::default()));
+        SiteConfig {
+            fit: SiteFitConfig {
+                radio_map: self.radio_map,
+                propagation: self.propagation,
+                propagation_is_coverage: self.propagation_is_coverage,
+                calibrate_pdr: self.calibrate_pdr,
+                calibration: self.calibration,
+            },
+            positioner: self.positioner(default_scheme, self.pdr),
+            schemes: self.schemes.clone(),
         }
     }
 

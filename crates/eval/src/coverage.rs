@@ -10,7 +10,7 @@
 //! (`wipdr eval --by-coverage 5,10,20`).
 //!
 //! ```
-//! use wipdr_core::{Point2, Waypoint};
+//! use wipdr_core::Waypoint;
 //! use wipdr_eval::coverage::{MeasuredPoint, coverage_distance};
 //! let map = [MeasuredPoint { position: Point2::new(0.0, 0.0), floor: Some(0) },
 //!            MeasuredPoint { position: Point2::new(3.0, 4.0), floor: Some(-2) }];
@@ -22,50 +22,11 @@
 
 use crate::report::EvalReport;
 use crate::scoring::WalkScore;
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write;
-use wipdr_core::{Point2, Waypoint};
+use wipdr_core::Waypoint;
 
-/// A measured reference point of a fold's radio map: where the training walks have
-/// fingerprints.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct MeasuredPoint {
-    /// Position in the floor (or building) frame, metres.
-    pub position: Point2,
-    /// Floor, where the map has floors.
-    pub floor: Option<i32>,
-}
-
-/// The reference points of `map` as [`MeasuredPoint`]s (position and floor).
-pub fn measured_points(map: &wipdr_fingerprint::radio_map::RadioMap) -> Vec<MeasuredPoint> {
-    map.points()
-        .iter()
-        .map(|p| MeasuredPoint {
-            position: p.position,
-            floor: p.floor,
-        })
-        .collect()
-}
-
-/// The 2D distance (metres) from `position` to the nearest point of `points` on `floor`
-/// (a point without a floor, or a `floor` of `None`, matches any floor). `None` when no
-/// point matches.
-pub fn coverage_distance(
-    position: Point2,
-    floor: Option<i32>,
-    points: &[MeasuredPoint],
-) -> Option<f64> {
-    points
-        .iter()
-        .filter(|p| match (floor, p.floor) {
-            (Some(f), Some(g)) => f == g,
-            _ => true,
-        })
-        .map(|p| (p.position - position).norm())
-        .filter(|d| d.is_finite())
-        .min_by(f64::total_cmp)
-}
+pub use wipdr_positioning::site_model::{MeasuredPoint, coverage_distance, measured_points};
 
 /// Fills `score.coverage_m` from `waypoint_coverage_m` (aligned with `waypoints`, the
 /// waypoints `score` was scored at): the scored points are a time-ordered subsequence of
@@ -215,6 +176,7 @@ mod tests {
     use super::*;
     use crate::report::WalkResult;
     use proptest::prelude::*;
+    use wipdr_core::Point2;
 
     fn result(scheme: &str, errs: &[(f64, Option<f64>)]) -> WalkResult {
         let e: Vec<f64> = errs.iter().map(|&(e, _)| e).collect();

@@ -12,8 +12,7 @@ use crate::folds::folds_of_walk_refs;
 use rayon::prelude::*;
 use wipdr_core::{TimestampMs, Walk, Waypoint};
 use wipdr_pdr::calibrate::{
-    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_heading_snap,
-    fit_step_length, leg_errors, track,
+    CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, leg_errors, track,
 };
 use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
 
@@ -89,16 +88,7 @@ pub fn calibrate_steps_with_grid(
     cal: &CalibrationConfig,
     walks: &[WalkSteps<'_>],
 ) -> (PdrConfig, Option<(f64, f64)>) {
-    let mut out = *base;
-    out.step_length = fit_step_length(base.step_length, walks, cal);
-    if cal.fit_heading_offset
-        && let Some(off) = fit_heading_offset(&out.step_length, base.heading.source, walks, cal)
-    {
-        out.heading.map_offset_rad = base.heading.map_offset_rad + off;
-    }
-    let (snap, grid) = fit_heading_snap(&base.heading.snap, walks, cal);
-    out.heading.snap = snap;
-    (out, grid)
+    wipdr_pdr::calibrate::calibrate_config(base, cal, walks)
 }
 
 fn source_slot(s: &mut StepDetail, source: HeadingSource) -> &mut Option<f64> {

@@ -21,8 +21,8 @@ use thiserror::Error;
 use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::TrailRaster;
-use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps};
 use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
 use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
 
@@ -93,6 +93,14 @@ pub enum EvalError {
         floor: String,
         /// Walk id asked for.
         walk: String,
+    },
+    /// A fold's site model could not be fit.
+    #[error("floor {floor}: site model: {reason}")]
+    Site {
+        /// Floor label.
+        floor: String,
+        /// Cause.
+        reason: String,
     },
     /// A scheme could not be built from its config.
     #[error("scheme {scheme}: {source}")]
@@ -175,10 +183,7 @@ pub struct PreparedWalk {
     pub trails: Option<Arc<TrailRaster>>,
 }
 
-/// Raster cell of [`PreparedWalk::trails`], metres.
-pub const TRAIL_CELL_M: f64 = 0.5;
-/// Distance cap of [`PreparedWalk::trails`], metres.
-pub const TRAIL_MAX_DISTANCE_M: f64 = 15.0;
+pub use wipdr_positioning::site_model::{TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
 
 impl PreparedWalk {
     /// The true first waypoint: the start of the PDR-only baseline (and only of it).
@@ -192,25 +197,7 @@ pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
     Pdr::run(*cfg, walk)
 }
 
-/// Runs PDR under `base` on the `training` walks (their waypoints are training data) and
-/// calibrates it there ([`crate::pdr_protocol::calibrate_steps`]: step length, heading offset,
-/// the grid orientation of heading snapping). Returns `base` unchanged when there is nothing
-/// to fit on.
-pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
-    let detailed: Vec<_> = training
-        .par_iter()
-        .map(|w| Pdr::run_detailed(*base, w).0)
-        .collect();
-    let walks: Vec<WalkSteps<'_>> = detailed
-        .iter()
-        .zip(training)
-        .map(|(steps, w)| WalkSteps {
-            steps,
-            waypoints: &w.waypoints,
-        })
-        .collect();
-    crate::pdr_protocol::calibrate_steps(base, cal, &walks)
-}
+pub use wipdr_positioning::site_model::calibrate_pdr;
 
 /// A floor needs a walk per fold (route folds: at least two routes).
 fn check_enough_walks(f: &FloorInput) -> Result<(), EvalError> {
@@ -260,9 +247,18 @@ pub fn prepare_items(
     cfg: &EvalConfig,
     jobs: &[(usize, usize)],
 ) -> Result<Vec<PreparedWalk>, EvalError> {
+    // The plan's indexes (walls, walkable raster) are built once per floor and shared by
+    // its folds' site models.
+    let mut needed: Vec<usize> = jobs.iter().map(|&(fi, _)| fi).collect();
+    needed.sort_unstable();
+    needed.dedup();
+    let plan_sites: std::collections::BTreeMap<usize, Site> = needed
+        .par_iter()
+        .map(|&fi| (fi, FloorEnv::new(&floors[fi]).site))
+        .collect();
     let per_fold: Vec<Result<Vec<PreparedWalk>, EvalError>> = jobs
         .par_iter()
-        .map(|&(fi, fold)| prepare_fold(&floors[fi], fi, fold, cfg))
+        .map(|&(fi, fold)| prepare_fold(&floors[fi], fi, fold, cfg, plan_sites.get(&fi).cloned()))
         .collect();
     let mut out = Vec::new();
     for r in per_fold {
@@ -277,8 +273,9 @@ fn prepare_fold(
     floor_index: usize,
     fold: usize,
     cfg: &EvalConfig,
+    plan_site: Option<Site>,
 ) -> Result<Vec<PreparedWalk>, EvalError> {
-    let model = FoldModel::build(floor, fold, cfg)?;
+    let model = FoldModel::build_sharing_plan(floor, fold, cfg, plan_site)?;
     let prepared: Vec<PreparedWalk> = model
         .test_walks
         .par_iter()
@@ -290,7 +287,7 @@ fn prepare_fold(
         .iter()
         .flat_map(|p| p.observations.iter().map(|o| o.visited))
         .sum();
-    let map_points = model.matcher.map().len();
+    let map_points = model.model.radio_map().len();
     tracing::info!(
         floor = %floor.label,
         fold,
@@ -452,29 +449,56 @@ pub fn locate_on_model(
             floor: floor.label.clone(),
             walk: format!("#{index}"),
         })?;
-    let scheme_cfg = cfg.scheme(scheme)?;
-    let start = (scheme_cfg.name() == "pdr")
-        .then(|| walk.waypoints.first().map(|w| (w.t, w.position)))
-        .flatten();
+    locate_walk(&model.model, walk, scheme, cfg.offline).map_err(|e| EvalError::Site {
+        floor: floor.label.clone(),
+        reason: e.to_string(),
+    })
+}
+
+/// The track of `walk` streamed sample by sample through a [`Positioner`](wipdr_positioning::Positioner) on a site
+/// model, as `wipdr locate --model` writes it: one estimate after each step or fix, the
+/// stream seeded by the walk's id and using the model's barometric references where the walk
+/// names its phone model and start time. For `pdr` (dead reckoning alone, which needs a known
+/// start) the track starts at the walk's true first waypoint, the protocol's one use of truth;
+/// a walk without waypoints cannot run `pdr`. With `offline`, the whole stream re-estimated
+/// after its end ([`Positioner::smooth`](wipdr_positioning::Positioner::smooth); `pdr` stays causal).
+pub fn locate_walk(
+    model: &SiteModel,
+    walk: &Walk,
+    scheme: &str,
+    offline: bool,
+) -> Result<Vec<PositionEstimate>, SiteModelError> {
+    let scheme_cfg = model.scheme(scheme)?;
+    let start = if scheme_cfg.name() == "pdr" {
+        let Some(w) = walk.waypoints.first() else {
+            return Err(SiteModelError::Positioning(
+                wipdr_positioning::PositioningError::InvalidConfig {
+                    path: "scheme".into(),
+                    reason: format!(
+                        "{scheme} is dead reckoning from a known start (the walk's first waypoint), and walk {} has no waypoints",
+                        walk.meta.id
+                    ),
+                },
+            ));
+        };
+        Some((w.t, w.position))
+    } else {
+        None
+    };
     let mut positioner = model.positioner(
-        floor,
-        scheme_cfg,
-        cfg,
-        &walk.meta.id,
-        crate::fold::identity_of(walk),
-        start.map(|(_, p)| p),
+        scheme,
+        &StreamSpec {
+            id: Some(walk.meta.id.clone()),
+            identity: crate::fold::identity_of(walk),
+            start: start.map(|(_, p)| p),
+        },
     )?;
     let track = track_of(&mut positioner, samples_of(walk), start);
-    if !cfg.offline || start.is_some() {
+    if !offline || start.is_some() {
         return Ok(track);
     }
     // Offline: the whole stream re-estimated (the `pdr` baseline from the truth stays causal).
-    positioner
-        .smooth()
-        .map_err(|source| EvalError::Positioning {
-            floor: floor.label.clone(),
-            source,
-        })
+    Ok(positioner.smooth()?)
 }
 
 /// Runs `schemes` over prepared walks and scores them.

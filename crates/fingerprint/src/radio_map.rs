@@ -313,6 +313,50 @@ impl RadioMap {
         Ok(())
     }
 
+    /// Checks that a map decoded from outside (a saved site model) is one this crate could
+    /// have built: its parallel arrays are `len() x n_aps()` long, every position, RSS and
+    /// spread is finite, the "not heard" value is finite and the vocabulary names each column
+    /// once. A map that fails would panic or give NaN when matched; it is refused instead.
+    pub fn check_consistent(&self) -> Result<(), FingerprintError> {
+        let bad = |what: String| Err(FingerprintError::InvalidInput(format!("radio map: {what}")));
+        let cells = self.points.len().checked_mul(self.n_aps());
+        if cells.is_none_or(|c| {
+            c != self.mean_dbm.len() || c != self.counts.len() || c != self.spread_db.len()
+        }) {
+            return bad(format!(
+                "{} points x {} APs, but {} / {} / {} values (mean / count / spread)",
+                self.points.len(),
+                self.n_aps(),
+                self.mean_dbm.len(),
+                self.counts.len(),
+                self.spread_db.len()
+            ));
+        }
+        if self.vocabulary.by_name.len() != self.vocabulary.names.len()
+            || self.vocabulary.bssids.len() != self.vocabulary.names.len()
+        {
+            return bad("the AP vocabulary names a column twice".into());
+        }
+        if !self.config.not_heard_dbm.is_finite() {
+            return bad(format!("not_heard_dbm {}", self.config.not_heard_dbm));
+        }
+        if let Some(i) = self.points.iter().position(|p| {
+            !(p.position.x.is_finite() && p.position.y.is_finite())
+                || p.z.is_some_and(|z| !z.is_finite())
+        }) {
+            return bad(format!("reference point {i} has a non-finite position"));
+        }
+        if let Some(k) = self
+            .mean_dbm
+            .iter()
+            .zip(&self.spread_db)
+            .position(|(m, s)| !m.is_finite() || !s.is_finite())
+        {
+            return bad(format!("value {k} is not finite"));
+        }
+        Ok(())
+    }
+
     /// Number of reference points.
     pub fn len(&self) -> usize {
         self.points.len()

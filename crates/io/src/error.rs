@@ -104,6 +104,18 @@ pub enum IoError {
         /// What is wrong.
         message: String,
     },
+    /// A line of a plain sample stream ([`crate::sample_stream`]) that is not a sample.
+    #[error("{path}: line {line}: field {field}: {message}", path = path.display())]
+    BadSample {
+        /// The file.
+        path: PathBuf,
+        /// The line (1-based).
+        line: usize,
+        /// The field (`t_ms`, `sensor`, `x`, `bssid`, ...).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A folder that does not look like an ILC floor folder.
     #[error("{path}: not a floor folder: {message}", path = path.display())]
     NotAFloor {

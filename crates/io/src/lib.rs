@@ -79,6 +79,7 @@ pub mod geojson;
 pub mod limits;
 pub mod logfile;
 pub mod logfile_folder;
+pub mod sample_stream;
 pub mod site;
 pub mod trace;
 

@@ -283,6 +283,31 @@ pub fn fit_heading_snap(
     (out, fit)
 }
 
+/// The calibration of a PDR config on steps already run under `base` (the training walks'
+/// waypoint legs are training data): the step-length coefficients fitted on the legs, then
+/// (when `cal.fit_heading_offset`) the heading offset of `base.heading.source`, added to
+/// `base`'s, and (when heading snapping is on) the grid orientation of the legs, snapping
+/// turned off where they follow no grid ([`fit_heading_snap`]). Returns `base` with the fitted
+/// values (unchanged where there is nothing to fit on) and the legs' grid fit,
+/// `(orientation rad, concentration)` (`None` when snapping is off in `base` or there are no
+/// legs).
+pub fn calibrate_config(
+    base: &crate::PdrConfig,
+    cal: &CalibrationConfig,
+    walks: &[WalkSteps<'_>],
+) -> (crate::PdrConfig, Option<(f64, f64)>) {
+    let mut out = *base;
+    out.step_length = fit_step_length(base.step_length, walks, cal);
+    if cal.fit_heading_offset
+        && let Some(off) = fit_heading_offset(&out.step_length, base.heading.source, walks, cal)
+    {
+        out.heading.map_offset_rad = base.heading.map_offset_rad + off;
+    }
+    let (snap, grid) = fit_heading_snap(&base.heading.snap, walks, cal);
+    out.heading.snap = snap;
+    (out, grid)
+}
+
 /// Length (m) of a step under `model` (clamped to `[min, max]` of the config it came from
 /// is the caller's business; here only non-finite values become 0).
 fn length_of(s: &StepDetail, model: &StepLengthConfig) -> f64 {

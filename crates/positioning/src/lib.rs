@@ -35,7 +35,7 @@
 //! }), Default::default())?);
 //! let config = PositionerConfig::default(); // shared-AP WKNN, default PDR, `ekf`
 //! let matcher = config.matcher.build(map.clone())?;
-//! let mut positioner = Positioner::new(&matcher, &Site::new(None, &map), &config, None)?;
+//! let mut positioner = Positioner::from_parts(&matcher, &Site::new(None, &map), &config, None)?;
 //! for k in 0..200 { // ten seconds at 20 Hz
 //!     let t = 50 * k;
 //!     positioner.push_rotation_vector(t, [0.0, 0.0, 0.0]);
@@ -59,6 +59,7 @@ pub mod merge;
 pub mod positioner;
 pub mod sample;
 pub mod site;
+pub mod site_model;
 pub mod smooth;
 
 pub use config::PositionerConfig;
@@ -68,3 +69,4 @@ pub use floor_tracker::{FloorConfig, FloorTracker, PressureReference, StreamIden
 pub use positioner::{Event, Frontend, FusionStage, Positioner, StreamCounts, track_of};
 pub use sample::{PressureSample, Sample, samples_of};
 pub use site::{Site, WALKABLE_CELL_M, stream_seed};
+pub use site_model::{SiteConfig, SiteModel, SiteModelError, StreamSpec, TrainingData};

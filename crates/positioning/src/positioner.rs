@@ -359,9 +359,19 @@ struct Smoothing {
 }
 
 impl Positioner {
-    /// A positioner for one stream over a built matcher and a site (`seed` as given: mix a
-    /// stream id in with [`crate::stream_seed`] for many streams).
-    pub fn new(
+    /// A positioner for one stream running scheme `scheme` on a fitted site model
+    /// ([`crate::SiteModel`]): its radio map, calibrated PDR, plan, coverage and trails, the
+    /// model's config with the model's settings for `scheme`, the config's seed. For a seed
+    /// per stream, barometric references or a known start, use
+    /// [`crate::SiteModel::positioner`].
+    pub fn new(model: &crate::SiteModel, scheme: &str) -> Result<Self, crate::SiteModelError> {
+        model.positioner(scheme, &crate::StreamSpec::default())
+    }
+
+    /// A positioner for one stream over a built matcher and a site, all settings given
+    /// (`seed` as given: mix a stream id in with [`crate::stream_seed`] for many streams);
+    /// what [`Positioner::new`] does once it has the site model's parts.
+    pub fn from_parts(
         matcher: &MatcherModel,
         site: &Site,
         config: &PositionerConfig,
@@ -532,27 +542,33 @@ impl Positioner {
 /// step or fix (and one at `start`'s time first when a start is given), as `wipdr locate`
 /// writes it and the evaluation scores it. With a start, the samples before its time only
 /// warm the front end up ([`Positioner::warm_up`]): a step taken before the start does not
-/// move it.
+/// move it; the start's row is taken once they are in, so it carries the floor the front end
+/// estimated from them.
 pub fn track_of(
     positioner: &mut Positioner,
     samples: impl IntoIterator<Item = Sample>,
     start: Option<(TimestampMs, Point2)>,
 ) -> Vec<PositionEstimate> {
     let mut track = Vec::new();
-    if let (Some((t, _)), Some(mut e)) = (start, positioner.estimate()) {
-        e.t = t;
-        track.push(e);
-    }
+    let mut start_row = start.map(|(t, _)| t);
+    let mut emit_start = |positioner: &Positioner, track: &mut Vec<PositionEstimate>| {
+        if let (Some(t), Some(mut e)) = (start_row.take(), positioner.estimate()) {
+            e.t = t;
+            track.push(e);
+        }
+    };
     for s in samples {
         let t = s.t();
         if start.is_some_and(|(t0, _)| t < t0) {
             positioner.warm_up(&s);
             continue;
         }
+        emit_start(positioner, &mut track);
         if let Some(mut e) = positioner.push(&s) {
             e.t = t;
             track.push(e);
         }
     }
+    emit_start(positioner, &mut track);
     track
 }

@@ -13,8 +13,8 @@ use wipdr_io::trace::{self, ParseReport, ParsedWalk};
 /// Arguments of `wipdr inspect`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Walk files (`.txt`, `.txt.gz`) or floor folders (with `floor_info.json`,
-    /// `geojson_map.json` and `path_data_files/`).
+    /// Walk files (`.txt`, `.txt.gz`), floor folders (with `floor_info.json`,
+    /// `geojson_map.json` and `path_data_files/`) or site model files (`wipdr fit`).
     #[arg(required = true)]
     pub paths: Vec<PathBuf>,
     /// Only the floor summary, not one line per walk.
@@ -38,6 +38,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for path in &args.paths {
         if path.is_dir() {
             inspect_floor(path, &args, &options)?;
+        } else if is_site_model(path) {
+            inspect_model(path)?;
         } else {
             inspect_walk(path, &options)?;
         }
@@ -48,6 +50,125 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.paths.len(),
             started.elapsed().as_secs_f64()
         );
+    }
+    Ok(())
+}
+
+/// Whether `path` is (or claims to be) a site model: named `*.wipdr`, or starting with the
+/// model file's magic.
+fn is_site_model(path: &Path) -> bool {
+    use std::io::Read;
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("wipdr"))
+    {
+        return true;
+    }
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| &head == wipdr_positioning::site_model::MAGIC)
+}
+
+/// Prints what a site model holds: floors, reference points, APs, config, provenance.
+fn inspect_model(path: &Path) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let model = wipdr_positioning::SiteModel::load(path)?;
+    let elapsed = t0.elapsed().as_secs_f64();
+    let d = model.data();
+    let map = model.radio_map();
+    let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    println!(
+        "{}: site model {:?}, {:.2} MB, loaded in {:.3} s",
+        path.display(),
+        d.name,
+        bytes as f64 / 1e6,
+        elapsed
+    );
+    println!(
+        "  floors: {}",
+        if d.floors.is_empty() {
+            "one, unnumbered".to_string()
+        } else {
+            format!("{:?}", d.floors)
+        }
+    );
+    let mut by_floor: std::collections::BTreeMap<Option<i32>, usize> = Default::default();
+    for p in map.points() {
+        *by_floor.entry(p.floor).or_default() += 1;
+    }
+    let per_floor: Vec<String> = by_floor
+        .iter()
+        .map(|(f, n)| match f {
+            Some(f) => format!("{f}: {n}"),
+            None => format!("-: {n}"),
+        })
+        .collect();
+    println!(
+        "  radio map: {} reference points ({} measured{}), {} APs; by floor {{{}}}",
+        map.len(),
+        d.measured.len(),
+        if d.coverage_includes_extension {
+            ", extension counted as coverage"
+        } else {
+            ""
+        },
+        map.n_aps(),
+        per_floor.join(", ")
+    );
+    println!(
+        "  matcher: {}; trails: {} segments; barometric references: {}",
+        model.matcher().name(),
+        d.trail_segments.len(),
+        d.pressure_references.len()
+    );
+    match &d.plan {
+        Some(p) => println!(
+            "  plan: {:.1} x {:.1} m, {} walls, outline {}",
+            p.width,
+            p.height,
+            p.walls.len(),
+            if p.outline.is_empty() { "none" } else { "yes" }
+        ),
+        None => println!("  plan: none"),
+    }
+    match &d.geo_frame {
+        Some(f) => println!(
+            "  WGS84 frame: origin {:.7}, {:.7}",
+            f.origin_lat_deg, f.origin_lon_deg
+        ),
+        None => println!("  WGS84 frame: none"),
+    }
+    let p = &d.provenance;
+    println!(
+        "  provenance: wipdr {}, created {}, {} training walks ({} waypoints, {} scans), {} survey rows",
+        p.wipdr_version,
+        p.created_unix_s
+            .map_or("(not recorded)".to_string(), |t| format!("at Unix {t} s")),
+        p.training_walks,
+        p.waypoints,
+        p.scans,
+        p.survey_rows
+    );
+    println!(
+        "  sources: {} files{}",
+        p.sources.len(),
+        p.sources_sha256
+            .as_ref()
+            .map_or(String::new(), |h| format!(", SHA-256 of their digests {h}"))
+    );
+    println!(
+        "  config (the positioner every stream runs; PDR calibrated):\n{}",
+        toml::to_string_pretty(&d.config)
+            .unwrap_or_else(|e| format!("(not printable as TOML: {e})"))
+            .lines()
+            .map(|l| format!("    {l}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    if !d.schemes.is_empty() {
+        let names: Vec<&String> = d.schemes.keys().collect();
+        println!("  scheme settings: {names:?}");
     }
     Ok(())
 }

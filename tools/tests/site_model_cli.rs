@@ -1,0 +1,343 @@
+//! `wipdr fit` then `wipdr locate --model` in fresh processes gives exactly the per-walk
+//! errors of the evaluation for that walk, for every scheme: on the fixture floor, on the
+//! fixture walks written as IPIN logfiles, and (when the shared data is beside the
+//! repository) on a real ILC floor and the real IPIN logfiles.
+
+mod common;
+
+use common::wipdr;
+use std::path::{Path, PathBuf};
+use wipdr_core::{GeoFrame, PressureSample, Walk};
+use wipdr_eval::pipeline::{self, EvalConfig, FloorInput};
+use wipdr_eval::scoring::{TrackPoint, score_track_with_floors};
+
+fn fixture_dir() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"))
+}
+
+fn data_root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"))
+}
+
+/// The per-walk errors the evaluation reports for walk `id` of `floor` under `cfg`, for each
+/// of `schemes`: the walk's fold prepared and run by the library, as `wipdr eval` does.
+fn eval_errors(
+    floor: &FloorInput,
+    id: &str,
+    schemes: &[String],
+    cfg: &EvalConfig,
+) -> Vec<Vec<(i64, f64, Option<i32>)>> {
+    let index = floor
+        .data
+        .walks
+        .iter()
+        .position(|w| w.meta.id == id)
+        .unwrap();
+    let fold = wipdr_eval::fold::folds_of(floor)[index];
+    let floors = std::slice::from_ref(floor);
+    let prepared = pipeline::prepare_items(floors, cfg, &[(0, fold)]).unwrap();
+    let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| {}).unwrap();
+    schemes
+        .iter()
+        .map(|s| {
+            report
+                .walks
+                .iter()
+                .find(|w| w.walk == id && &w.scheme == s)
+                .unwrap_or_else(|| panic!("{s} on {id}"))
+                .score
+                .errors
+                .clone()
+        })
+        .collect()
+}
+
+/// A `wipdr locate` CSV (`t_ms,x,y,floor,sd_m`) scored at `walk`'s waypoints, the floor
+/// estimate taken from the CSV's floor column.
+fn score_csv(path: &Path, walk: &Walk) -> Vec<(i64, f64, Option<i32>)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t_ms,x,y,floor,sd_m"));
+    let mut track = Vec::new();
+    let mut floors: Vec<(i64, i32)> = Vec::new();
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        let t: i64 = f[0].parse().unwrap();
+        track.push(TrackPoint::new(
+            t,
+            wipdr_core::Point2::new(f[1].parse().unwrap(), f[2].parse().unwrap()),
+        ));
+        if let Ok(floor) = f[3].parse::<i32>()
+            && floors.last().is_none_or(|&(_, last)| last != floor)
+        {
+            floors.push((t, floor));
+        }
+    }
+    let from = walk.wifi.first().map(|s| s.t);
+    score_track_with_floors(&walk.waypoints, &track, &floors, from).errors
+}
+
+/// Fits the fold of `walk_file`'s walk with `wipdr fit --leave-out-fold-of`, then locates the
+/// walk with every scheme of `schemes` through `wipdr locate --model`, each in a new
+/// process, and checks the errors equal the evaluation's.
+fn check_fit_locate_equals_eval(data: &Path, walk_file: &Path, schemes: &[String], offline: bool) {
+    let tmp = tempfile::tempdir().unwrap();
+    let floor_data = wipdr_io::any::read_any_dir(
+        data,
+        &wipdr_io::cache::CacheSettings::disabled(),
+        &Default::default(),
+        &|| {},
+    )
+    .unwrap()
+    .0;
+    let floor = FloorInput::new("floor", floor_data.into_floor());
+    let frame = floor.data.geo_frame;
+    let walk = wipdr_positioning_walk(walk_file, frame.as_ref());
+    let id = walk.meta.id.clone();
+    let cfg = EvalConfig {
+        offline,
+        ..EvalConfig::default()
+    };
+    let expected = eval_errors(&floor, &id, schemes, &cfg);
+    let model = tmp.path().join("site.wipdr");
+    let data_arg = data.to_str().unwrap();
+    wipdr(
+        &[
+            "--no-cache",
+            "fit",
+            "--data",
+            data_arg,
+            "--leave-out-fold-of",
+            &id,
+            "--out",
+            model.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    for (scheme, expected) in schemes.iter().zip(expected) {
+        let csv = tmp.path().join(format!("{scheme}.csv"));
+        let mut args = vec![
+            "locate",
+            "--model",
+            model.to_str().unwrap(),
+            walk_file.to_str().unwrap(),
+            "--scheme",
+            scheme,
+            "--format",
+            "csv",
+            "--out",
+            csv.to_str().unwrap(),
+        ];
+        if offline {
+            args.push("--offline");
+        }
+        wipdr(&args, tmp.path());
+        let located = score_csv(&csv, &walk);
+        assert!(!expected.is_empty(), "{scheme}: nothing scored");
+        if let Some(k) = (0..located.len().min(expected.len())).find(|&k| located[k] != expected[k])
+        {
+            eprintln!(
+                "{scheme}: first difference at {k}: located {:?} eval {:?} (lengths {} / {})",
+                located[k],
+                expected[k],
+                located.len(),
+                expected.len()
+            );
+        }
+        assert_eq!(
+            located, expected,
+            "{scheme} (offline {offline}) on {id}: locate --model and eval differ"
+        );
+    }
+}
+
+/// The walk as `locate --model` reads it (logfiles in the model's frame).
+fn wipdr_positioning_walk(path: &Path, frame: Option<&GeoFrame>) -> Walk {
+    let limits = wipdr_io::Limits::default();
+    if wipdr_io::logfile::is_logfile(path) {
+        let log = wipdr_io::logfile::read_logfile(path, &limits).unwrap();
+        return log
+            .into_walk(frame.expect("a logfile folder has a frame"))
+            .walk;
+    }
+    wipdr_io::trace::read_walk_with(path, &limits).unwrap().walk
+}
+
+fn all_schemes() -> Vec<String> {
+    wipdr_fusion::scheme_names()
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+}
+
+#[test]
+fn fixture_floor_fit_save_load_locate_equals_eval_for_every_scheme() {
+    let dir = fixture_dir();
+    let walk_file = dir.join("path_data_files").join("sim_F1_w0000.txt.gz");
+    check_fit_locate_equals_eval(&dir, &walk_file, &all_schemes(), false);
+    check_fit_locate_equals_eval(&dir, &walk_file, &["ekf".into(), "pmf".into()], true);
+}
+
+/// The fixture walks as IPIN logfiles in `dir` (three routes, repetitions, a barometer).
+fn write_logfiles(dir: &Path) -> Vec<PathBuf> {
+    let floor = wipdr_io::read_floor_dir(fixture_dir(), &Default::default()).unwrap();
+    let frame = GeoFrame::new(49.4611, 11.1102).unwrap();
+    let mut files = Vec::new();
+    for (i, parsed) in floor.walks.iter().enumerate() {
+        let mut walk = parsed.walk.clone();
+        for w in &mut walk.waypoints {
+            w.floor = Some(0);
+        }
+        if let Some((t0, t1)) = walk.time_span() {
+            walk.pressure = (t0..=t1)
+                .step_by(1000)
+                .map(|t| PressureSample { t, hpa: 976.2 })
+                .collect();
+        }
+        let path = dir.join(format!("SIM_Trial0{}_repetition0{}.txt", i % 3, i / 3 + 1));
+        let mut file = std::fs::File::create(&path).unwrap();
+        wipdr_io::logfile::write_logfile(&walk, &frame, 100, &mut file).unwrap();
+        files.push(path);
+    }
+    files
+}
+
+#[test]
+fn fixture_logfiles_fit_save_load_locate_equals_eval_for_every_scheme() {
+    let tmp = tempfile::tempdir().unwrap();
+    let files = write_logfiles(tmp.path());
+    check_fit_locate_equals_eval(tmp.path(), &files[1], &all_schemes(), false);
+}
+
+#[test]
+fn real_ilc_floor_and_ipin_logfile_fit_locate_equals_eval() {
+    let root = data_root();
+    let floor = root.join("ilc20/site1/F1");
+    let trials = root.join("ipin2023/trials");
+    if !floor.is_dir() || !trials.is_dir() {
+        println!("skipped: no real data at {}", root.display());
+        return;
+    }
+    let mut walks: Vec<PathBuf> = std::fs::read_dir(floor.join("path_data_files"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    walks.sort();
+    check_fit_locate_equals_eval(&floor, &walks[0], &all_schemes(), false);
+    let mut logs: Vec<PathBuf> = std::fs::read_dir(&trials)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| wipdr_io::logfile::is_logfile(p))
+        .collect();
+    logs.sort();
+    check_fit_locate_equals_eval(&trials, &logs[0], &all_schemes(), false);
+}
+
+#[test]
+fn a_plain_stream_locates_as_the_trace_it_was_exported_from() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = fixture_dir();
+    let model = tmp.path().join("f1.wipdr");
+    let trace = dir.join("path_data_files").join("sim_F1_w0000.txt.gz");
+    let stream = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../fixtures/stream/sim_F1_w0000.csv.gz"
+    ));
+    let (m, t) = (model.to_str().unwrap(), tmp.path().join("out"));
+    wipdr(
+        &[
+            "--no-cache",
+            "fit",
+            "--data",
+            dir.to_str().unwrap(),
+            "--out",
+            m,
+        ],
+        tmp.path(),
+    );
+    // The committed fixture is the trace exported by `wipdr export-stream`.
+    let exported = tmp.path().join("exported.csv.gz");
+    wipdr(
+        &[
+            "export-stream",
+            trace.to_str().unwrap(),
+            "--out",
+            exported.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    let text = |p: &Path| {
+        let mut s = String::new();
+        std::io::Read::read_to_string(
+            &mut flate2::read::MultiGzDecoder::new(std::fs::File::open(p).unwrap()),
+            &mut s,
+        )
+        .unwrap();
+        s
+    };
+    assert_eq!(
+        text(&exported),
+        text(&stream),
+        "fixtures/stream is stale: re-export it"
+    );
+    for scheme in ["ekf", "pmf"] {
+        let a = tmp.path().join(format!("trace-{scheme}.csv"));
+        let b = tmp.path().join(format!("stream-{scheme}.csv"));
+        for (input, out) in [(&trace, &a), (&stream, &b)] {
+            wipdr(
+                &[
+                    "locate",
+                    "--model",
+                    m,
+                    input.to_str().unwrap(),
+                    "--scheme",
+                    scheme,
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
+                tmp.path(),
+            );
+        }
+        let (a, b) = (
+            std::fs::read_to_string(a).unwrap(),
+            std::fs::read_to_string(b).unwrap(),
+        );
+        assert!(a.lines().count() > 50, "{scheme}: {a}");
+        assert_eq!(a, b, "{scheme}: the stream and the trace differ");
+    }
+    // Two inputs that would write one output file are refused before any work.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_wipdr"))
+        .args(["locate", "--model", m])
+        .arg(&trace)
+        .arg(&stream)
+        .arg("--out")
+        .arg(&t)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("different file names"), "{err}");
+}
+
+#[test]
+fn locate_refuses_a_file_that_is_not_a_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let trace = fixture_dir()
+        .join("path_data_files")
+        .join("sim_F1_w0000.txt.gz");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_wipdr"))
+        .args(["locate", "--model"])
+        .arg(&trace)
+        .arg(&trace)
+        .arg("--out")
+        .arg(tmp.path().join("t.csv"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("not a wipdr site model") && err.contains("gzip"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
