@@ -37,12 +37,37 @@ pub enum FingerprintError {
         /// The query's number of columns.
         found: usize,
     },
+    /// A radio map whose reference points hear no access point at all: every query would
+    /// be equally far from every point.
+    #[error(
+        "no access point is heard at any of the radio map's {points} reference points ({aps} AP \
+         columns, all \"not heard\"): nothing to match against"
+    )]
+    NothingHeard {
+        /// Reference points.
+        points: usize,
+        /// AP columns.
+        aps: usize,
+    },
     /// A radio map without reference points.
     #[error("the radio map has no reference points")]
     EmptyMap,
     /// An invalid configuration value.
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
+    /// A limit on memory crossed (before the memory is allocated): what was asked for, the
+    /// limit's config field and value, and how to raise it.
+    #[error("{what} is over the limit `{limit}` = {max}; {hint}")]
+    LimitExceeded {
+        /// What would have been allocated.
+        what: String,
+        /// The config field of the limit (dotted path).
+        limit: String,
+        /// The limit's value.
+        max: String,
+        /// How to raise it.
+        hint: String,
+    },
     /// Invalid input data while building a map (names the item).
     #[error("invalid input: {0}")]
     InvalidInput(String),
