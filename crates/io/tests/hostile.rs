@@ -322,3 +322,29 @@ fn fingerprint_csv_lines_size_columns_and_cells_are_limited() {
         .to_string();
     assert!(msg.contains("line 2: line length: more than the limit Limits::max_csv_line_bytes = 1048576; raise it"), "{msg}");
 }
+
+/// Seen on the old main: a label at x = 1e308 was read, and its error was infinite in 3D
+/// and left out of the finite 2D mean. Labels are range-checked on read, as waypoints are.
+#[test]
+fn fingerprint_labels_beyond_any_building_are_out_of_range() {
+    let header = "ap_000,x,y,z,floor,building\n";
+    for (row, column, field) in [
+        ("-60,1e308,0,0,0,0", 2, "x"),
+        ("-60,0,-1e200,0,0,0", 3, "y"),
+        ("-60,0,0,1e9,0,0", 4, "z"),
+    ] {
+        let text = format!("{header}-60,1,2,0,0,0\n{row}\n");
+        match read_fingerprint_csv_from_with(text.as_bytes(), "t.csv", &Limits::default()) {
+            Err(FingerprintCsvError::OutOfRange {
+                line,
+                column: c,
+                field: f,
+                ..
+            }) => assert_eq!((line, c, f.as_str()), (3, column, field)),
+            other => panic!("{row}: {other:?}"),
+        }
+    }
+    // Projected coordinates of real datasets (UJIIndoorLoc: northings near 4.86e6 m) read.
+    let text = format!("{header}-60,-7600.5,4864900.25,0,0,0\n");
+    read_fingerprint_csv_from_with(text.as_bytes(), "t.csv", &Limits::default()).unwrap();
+}
