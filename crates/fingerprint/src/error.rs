@@ -57,7 +57,7 @@ pub enum FingerprintError {
     InvalidConfig(String),
     /// A limit on memory crossed (before the memory is allocated): what was asked for, the
     /// limit's config field and value, and how to raise it.
-    #[error("{what} is over the limit `{limit}` = {max}; {hint}")]
+    #[error("{what}: over the limit `{limit}` = {max}; {hint}")]
     LimitExceeded {
         /// What would have been allocated.
         what: String,
