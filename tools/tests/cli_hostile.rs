@@ -257,7 +257,14 @@ fn bad_pdr_and_calibration_configs_are_refused_naming_file_and_field() {
 fn simulated_floor(root: &Path, walks: usize) -> PathBuf {
     let sim = root.join("sim");
     let out = wipdr()
-        .args(["simulate", "--walks", &walks.to_string(), "--duration-s", "30", "--out"])
+        .args([
+            "simulate",
+            "--walks",
+            &walks.to_string(),
+            "--duration-s",
+            "30",
+            "--out",
+        ])
         .arg(&sim)
         .output()
         .unwrap();
@@ -370,13 +377,19 @@ fn bad_eval_config_values_are_refused_naming_file_and_field() {
         ("score_first_m = nan\n", "score_first_m"),
         ("[query]\nmin_rssi_dbm = nan\n", "query.min_rssi_dbm"),
         ("[radio_map]\ngrid_cell_m = nan\n", "radio_map.grid_cell_m"),
-        ("[radio_map]\nmax_entry_age_ms = -1\n", "radio_map.max_entry_age_ms"),
+        (
+            "[radio_map]\nmax_entry_age_ms = -1\n",
+            "radio_map.max_entry_age_ms",
+        ),
         ("[radio_map]\nmax_aps = 0\n", "radio_map.max_aps"),
         (
             "[radio_map.interpolation.spatial]\ncell_m = 0.001\nmax_points = 1000000000\n",
             "max_points",
         ),
-        ("[schemes.my_ekf]\nq_heading_deg = 3.0\n", "scheme = \"ekf\""),
+        (
+            "[schemes.my_ekf]\nq_heading_deg = 3.0\n",
+            "scheme = \"ekf\"",
+        ),
     ]
     .into_iter()
     .enumerate()
@@ -421,14 +434,24 @@ fn degenerate_fingerprint_datasets_are_refused() {
     let good_test = format!("{header}-62,-68,1,0,0,0,0\n");
     let deaf = format!("{header}100,100,0,0,0,0,0\n100,100,10,0,0,0,0\n100,100,35,0,0,0,0\n");
     for (name, train, test, want) in [
-        ("header_only", train.clone(), header.to_string(), "no test query"),
+        (
+            "header_only",
+            train.clone(),
+            header.to_string(),
+            "no test query",
+        ),
         (
             "not_heard",
             train.clone(),
             format!("{header}100,100,1,0,0,0,0\n100,100,2,0,0,0,0\n"),
             "no test query",
         ),
-        ("deaf_train", deaf, good_test.clone(), "no access point is heard"),
+        (
+            "deaf_train",
+            deaf,
+            good_test.clone(),
+            "no access point is heard",
+        ),
         (
             "huge_label",
             train.clone(),

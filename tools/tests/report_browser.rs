@@ -322,7 +322,8 @@ fn crafted_strings_in_a_results_json_reach_the_page_as_text() {
         ],
         tmp.path(),
     );
-    let mut results: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let mut results: Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let mut names = std::collections::BTreeMap::new();
     names.insert(
         "wifi".to_owned(),
@@ -357,7 +358,10 @@ fn crafted_strings_in_a_results_json_reach_the_page_as_text() {
         plan["image"] = Value::String("javascript:document.body.dataset.pwned='i'".to_owned());
     }
     let walks = walks_of(&results).len();
-    let (crafted, page) = (tmp.path().join("crafted.json"), tmp.path().join("crafted.html"));
+    let (crafted, page) = (
+        tmp.path().join("crafted.json"),
+        tmp.path().join("crafted.html"),
+    );
     std::fs::write(&crafted, serde_json::to_string(&results).unwrap()).unwrap();
     wipdr(
         &[
@@ -369,7 +373,12 @@ fn crafted_strings_in_a_results_json_reach_the_page_as_text() {
         tmp.path(),
     );
     let html = std::fs::read_to_string(&page).unwrap();
-    for needle in ["<img id=\"pwned", "<svg id=\"pwned", "<b id=\"pwned", "javascript:"] {
+    for needle in [
+        "<img id=\"pwned",
+        "<svg id=\"pwned",
+        "<b id=\"pwned",
+        "javascript:",
+    ] {
         assert!(!html.contains(needle), "{needle} in the page's source");
     }
     let Some(browser) = browser_or_skip() else {

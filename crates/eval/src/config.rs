@@ -540,18 +540,33 @@ pub(crate) mod tests {
             ("score_first_m = inf", "score_first_m"),
             ("[query]\nmin_rssi_dbm = nan", "query.min_rssi_dbm"),
             ("[radio_map]\ngrid_cell_m = nan", "radio_map.grid_cell_m"),
-            ("[radio_map.radio]\nnot_heard_dbm = nan", "radio_map.radio.not_heard_dbm"),
+            (
+                "[radio_map.radio]\nnot_heard_dbm = nan",
+                "radio_map.radio.not_heard_dbm",
+            ),
             ("[schemes.ekf]\nr_wifi_m2 = -inf", "schemes.ekf.r_wifi_m2"),
-            ("[radio_map]\nmax_entry_age_ms = -1", "radio_map.max_entry_age_ms"),
-            ("[radio_map]\nmax_waypoint_gap_ms = -5", "radio_map.max_waypoint_gap_ms"),
+            (
+                "[radio_map]\nmax_entry_age_ms = -1",
+                "radio_map.max_entry_age_ms",
+            ),
+            (
+                "[radio_map]\nmax_waypoint_gap_ms = -5",
+                "radio_map.max_waypoint_gap_ms",
+            ),
             ("[query]\nmax_age_ms = -1", "query.max_age_ms"),
             ("[radio_map]\nmax_aps = 2000000", "radio_map.max_aps"),
-            ("[radio_map]\nmax_table_mib = 100000", "radio_map.max_table_mib"),
+            (
+                "[radio_map]\nmax_table_mib = 100000",
+                "radio_map.max_table_mib",
+            ),
             (
                 "[radio_map.interpolation.spatial]\ncell_m = 0.001\nmax_points = 1000000000",
                 "spatial.max_points",
             ),
-            ("[propagation]\nmax_points = 1000000000", "propagation.max_points"),
+            (
+                "[propagation]\nmax_points = 1000000000",
+                "propagation.max_points",
+            ),
         ] {
             let e = EvalConfig::from_toml(text, "t.toml")
                 .unwrap_err()
@@ -580,9 +595,11 @@ pub(crate) mod tests {
             "{e}"
         );
         // An explicit kind under another name still works.
-        let cfg =
-            EvalConfig::from_toml("[schemes.fast]\nscheme = \"ekf\"\nq_heading_deg = 2.0\n", "t")
-                .unwrap();
+        let cfg = EvalConfig::from_toml(
+            "[schemes.fast]\nscheme = \"ekf\"\nq_heading_deg = 2.0\n",
+            "t",
+        )
+        .unwrap();
         assert!(matches!(cfg.scheme("fast"), Ok(SchemeConfig::Ekf(_))));
     }
 

@@ -46,7 +46,7 @@
 
 use crate::FingerprintError;
 use crate::radio_map::{
-    MAX_VALID_RSSI_DBM, MIN_VALID_RSSI_DBM, RadioMap, TableBudget, ReferencePoint, is_valid_rssi,
+    MAX_VALID_RSSI_DBM, MIN_VALID_RSSI_DBM, RadioMap, ReferencePoint, TableBudget, is_valid_rssi,
 };
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

@@ -284,7 +284,10 @@ impl RadioMap {
     /// [`RadioMap::append_points_from`]) that would take it over `budget` is an error
     /// ([`FingerprintError::LimitExceeded`]) before anything is allocated. Kept by
     /// [`RadioMap::subset`]; `None` (the default) leaves the table unbounded.
-    pub fn set_table_budget(&mut self, budget: Option<TableBudget>) -> Result<(), FingerprintError> {
+    pub fn set_table_budget(
+        &mut self,
+        budget: Option<TableBudget>,
+    ) -> Result<(), FingerprintError> {
         if let Some(b) = &budget {
             b.check(self.len(), self.n_aps())?;
         }

@@ -136,10 +136,7 @@ impl WalkMapConfig {
         if let Some(gap) = self.max_waypoint_gap_ms
             && gap < 0
         {
-            return Err((
-                "max_waypoint_gap_ms",
-                format!("must be >= 0 ms, got {gap}"),
-            ));
+            return Err(("max_waypoint_gap_ms", format!("must be >= 0 ms, got {gap}")));
         }
         if let Some(c) = self.grid_cell_m
             && !(c.is_finite() && c > 0.0)

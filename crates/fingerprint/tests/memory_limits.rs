@@ -85,7 +85,10 @@ fn a_table_over_max_table_mib_is_refused() {
     };
     let e = build_from_walks([&w], &small).unwrap_err();
     assert_eq!(limit_of(&e), "radio_map.max_table_mib");
-    assert!(e.to_string().contains("400 reference points x 3000 APs"), "{e}");
+    assert!(
+        e.to_string().contains("400 reference points x 3000 APs"),
+        "{e}"
+    );
     let gridded = WalkMapConfig {
         grid_cell_m: Some(0.01),
         ..small

@@ -358,7 +358,10 @@ mod tests {
         let e = SweepSpec::from_toml("scheme = \"ekf\"\n[grid]\nscore_first_m = [10.0, nan]\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("grid.score_first_m[1]") && e.contains("NaN"), "{e}");
+        assert!(
+            e.contains("grid.score_first_m[1]") && e.contains("NaN"),
+            "{e}"
+        );
         let parsed: SweepSpec =
             toml::from_str("scheme = \"ekf\"\n[grid]\nscore_first_m = [10.0, nan]\n").unwrap();
         let e = parsed.check(100).unwrap_err().to_string();
