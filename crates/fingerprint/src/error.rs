@@ -56,19 +56,41 @@ pub enum FingerprintError {
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
     /// A limit on memory crossed (before the memory is allocated): what was asked for, the
-    /// limit's config field and value, and how to raise it.
-    #[error("{what}: over the limit `{limit}` = {max}; {hint}")]
-    LimitExceeded {
-        /// What would have been allocated.
-        what: String,
-        /// The config field of the limit (dotted path).
-        limit: String,
-        /// The limit's value.
-        max: String,
-        /// How to raise it.
-        hint: String,
-    },
+    /// limit's config field and value, and how to raise it (boxed: the error stays small).
+    #[error("{0}")]
+    LimitExceeded(Box<LimitError>),
     /// Invalid input data while building a map (names the item).
     #[error("invalid input: {0}")]
     InvalidInput(String),
+}
+
+/// The details of [`FingerprintError::LimitExceeded`].
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("{what}: over the limit `{limit}` = {max}; {hint}")]
+pub struct LimitError {
+    /// What would have been allocated.
+    pub what: String,
+    /// The config field of the limit (dotted path).
+    pub limit: String,
+    /// The limit's value.
+    pub max: String,
+    /// How to raise it.
+    pub hint: String,
+}
+
+impl FingerprintError {
+    /// A [`FingerprintError::LimitExceeded`].
+    pub fn limit_exceeded(
+        what: impl Into<String>,
+        limit: impl Into<String>,
+        max: impl ToString,
+        hint: impl Into<String>,
+    ) -> Self {
+        Self::LimitExceeded(Box::new(LimitError {
+            what: what.into(),
+            limit: limit.into(),
+            max: max.to_string(),
+            hint: hint.into(),
+        }))
+    }
 }

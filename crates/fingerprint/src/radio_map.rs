@@ -240,15 +240,15 @@ impl TableBudget {
     pub fn check(&self, points: usize, aps: usize) -> Result<(), FingerprintError> {
         let bytes = points.saturating_mul(aps).saturating_mul(BYTES_PER_CELL);
         if bytes > self.max_bytes {
-            return Err(FingerprintError::LimitExceeded {
-                what: format!(
+            return Err(FingerprintError::limit_exceeded(
+                format!(
                     "dense table of {points} reference points x {aps} APs ({} MiB)",
                     bytes >> 20
                 ),
-                limit: self.limit.to_string(),
-                max: format!("{} MiB", self.max_bytes >> 20),
-                hint: self.hint.to_string(),
-            });
+                self.limit.to_string(),
+                format!("{} MiB", self.max_bytes >> 20),
+                self.hint.to_string(),
+            ));
         }
         Ok(())
     }

@@ -285,18 +285,18 @@ where
         .collect();
     // Bounded before anything the size of the vocabulary (or of the table) is allocated.
     if bssids.len() > config.max_aps {
-        return Err(FingerprintError::LimitExceeded {
-            what: format!(
+        return Err(FingerprintError::limit_exceeded(
+            format!(
                 "the training walks' {} distinct APs (the radio map's columns)",
                 bssids.len()
             ),
-            limit: "radio_map.max_aps".into(),
-            max: config.max_aps.to_string(),
-            hint: format!(
+            "radio_map.max_aps",
+            config.max_aps.to_string(),
+            format!(
                 "raise it with `[radio_map] max_aps = N` (at most {MAX_APS_CEILING}), or leave \
                  out the walks whose scans carry that many BSSIDs"
             ),
-        });
+        ));
     }
     let budget = config.table_budget();
     if config.grid_cell_m.is_none() {

@@ -35,7 +35,7 @@ fn walk(scans: usize, per_scan: usize, distinct: bool) -> Walk {
 
 fn limit_of(e: &FingerprintError) -> &str {
     match e {
-        FingerprintError::LimitExceeded { limit, .. } => limit,
+        FingerprintError::LimitExceeded(e) => &e.limit,
         other => panic!("not a limit error: {other}"),
     }
 }
