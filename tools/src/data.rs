@@ -136,10 +136,39 @@ pub fn load_floor_data(dir: &Path) -> Result<FloorData> {
     Ok(data)
 }
 
+/// The floor folders to read, each once: a folder given again (by the same or another path
+/// to it) is left out with a warning, as a duplicate walk file is; a folder inside another
+/// one given (a floor and its site) is refused, since its walks would be read twice.
+pub fn distinct_floor_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut kept: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(dirs.len());
+    for dir in dirs {
+        let real = std::fs::canonicalize(dir)
+            .with_context(|| format!("reading floor {}", dir.display()))?;
+        if let Some((first, _)) = kept.iter().find(|(_, r)| *r == real) {
+            tracing::warn!(floor = %dir.display(), first = %first.display(), "floor folder given more than once: read once");
+            continue;
+        }
+        if let Some((other, _)) = kept
+            .iter()
+            .find(|(_, r)| real.starts_with(r) || r.starts_with(&real))
+        {
+            anyhow::bail!(
+                "floor folders {} and {}: one is inside the other, so its walks would be read twice; give one of them",
+                other.display(),
+                dir.display()
+            );
+        }
+        kept.push((dir.clone(), real));
+    }
+    Ok(kept.into_iter().map(|(d, _)| d).collect())
+}
+
 /// Reads floor folders ([`load_floor_data`]) into the evaluation's core vocabulary, each
 /// labelled by [`floor_label`] and remembering its folder (for the floor image of plots).
+/// Each folder is read once ([`distinct_floor_dirs`]).
 pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
-    dirs.iter()
+    distinct_floor_dirs(dirs)?
+        .iter()
         .map(|dir| {
             let data = load_floor_data(dir)?;
             Ok(FloorInput::new(floor_label(dir), data.into_floor()).with_dir(dir))

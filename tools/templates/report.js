@@ -180,12 +180,13 @@
         if (!(xw[1] > xw[0] && yw[1] > yw[0])) { xw = [0, plan.width]; yw = [0, plan.height]; }
         svg.setAttribute('viewBox', xw[0] + ' ' + (H - yw[1]) + ' ' + (xw[1] - xw[0]) + ' ' + (yw[1] - yw[0]));
         svg.dataset.size = Math.max(xw[1] - xw[0], yw[1] - yw[0]);
-        if (plan.image) {
+        // Only an embedded PNG (what `wipdr eval` writes) is drawn as the floor image.
+        if (typeof plan.image === 'string' && plan.image.startsWith('data:image/png;base64,')) {
           el('image', { href: plan.image, x: 0, y: 0, width: plan.width, height: plan.height, preserveAspectRatio: 'none' }, svg);
         } else {
           el('rect', { x: 0, y: 0, width: plan.width, height: plan.height, fill: '#f5f5f0' }, svg);
         }
-        el('path', { d: wallPath(w.floor, plan), fill: 'none', stroke: plan.image ? 'rgba(60,60,60,0.45)' : '#6e645a', 'stroke-width': 1, 'vector-effect': 'non-scaling-stroke', class: 'walls' }, svg);
+        el('path', { d: wallPath(w.floor, plan), fill: 'none', stroke: typeof plan.image === 'string' ? 'rgba(60,60,60,0.45)' : '#6e645a', 'stroke-width': 1, 'vector-effect': 'non-scaling-stroke', class: 'walls' }, svg);
       }
       const size = +svg.dataset.size || 50, dot = size / 220;
       const y = (v) => H - v;
@@ -261,13 +262,23 @@
         const tr = document.createElement('tr');
         if (!shown[s]) tr.className = 'hidden-scheme';
         const sd = sc ? sc.sd : (est ? est[3] : null);
-        const cells = [
-          '<span class="swatch" style="background:' + colour(s) + '"></span>' + schemes[s],
+        // Built as nodes and text, never as markup: scheme names come from the results file.
+        const name = document.createElement('td');
+        const swatch = document.createElement('span');
+        swatch.className = 'swatch';
+        swatch.style.background = colour(s);
+        name.appendChild(swatch);
+        name.appendChild(document.createTextNode(String(schemes[s])));
+        tr.appendChild(name);
+        for (const text of [
           sc ? fmt(sc.error, 2) + (sc.floor ? ' (floor ' + (sc.floor > 0 ? '+' : '') + sc.floor + ')' : '') : 'not scored',
           fmt(sd, 2), sd === null || sd === undefined ? '–' : fmt(R95 * sd, 2),
           est ? fmt(est[1], 1) + ', ' + fmt(est[2], 1) : '–'
-        ];
-        tr.innerHTML = cells.map((c) => '<td>' + c + '</td>').join('');
+        ]) {
+          const td = document.createElement('td');
+          td.textContent = text;
+          tr.appendChild(td);
+        }
         body.appendChild(tr);
       });
       readout.appendChild(table);

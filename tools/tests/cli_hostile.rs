@@ -252,3 +252,235 @@ fn bad_pdr_and_calibration_configs_are_refused_naming_file_and_field() {
     }
     assert!(!out_cfg.exists());
 }
+
+/// A simulated floor folder `root/sim/F1` with `walks` walks of 30 s.
+fn simulated_floor(root: &Path, walks: usize) -> PathBuf {
+    let sim = root.join("sim");
+    let out = wipdr()
+        .args([
+            "simulate",
+            "--walks",
+            &walks.to_string(),
+            "--duration-s",
+            "30",
+            "--out",
+        ])
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    sim.join("F1")
+}
+
+/// Writes `text` to `root/name` and returns the path.
+fn write_file(root: &Path, name: &str, text: &str) -> PathBuf {
+    let path = root.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Seen on the old main: one walk whose scans carry 1,000,000 distinct BSSIDs (a 3 MB
+/// file) made `eval` abort with `memory allocation of 2147483648 bytes failed` (5.3 GB peak).
+#[test]
+fn eval_of_a_walk_with_a_million_bssids_is_refused_naming_max_aps() {
+    use wipdr_core::{Bssid, WifiEntry, WifiScan};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulated_floor(tmp.path(), 4);
+    let walks_dir = dir.join(floor::WALKS_DIR);
+    let first = floor::walk_files(&dir).unwrap()[0].clone();
+    let model = wipdr_io::trace::read_walk(&first).unwrap().walk;
+    let mut walk = Walk::default();
+    walk.meta.id = "hostile".into();
+    walk.waypoints = model.waypoints.clone();
+    let (t0, t1) = (
+        walk.waypoints.first().unwrap().t,
+        walk.waypoints.last().unwrap().t,
+    );
+    let (scans, per_scan) = (1000usize, 1000usize);
+    for s in 0..scans {
+        let t = t0 + (t1 - t0) * s as i64 / scans as i64;
+        let entries = (0..per_scan)
+            .map(|k| WifiEntry {
+                bssid: Bssid((s * per_scan + k) as u64 + 1),
+                ssid: String::new(),
+                rssi_dbm: -60.0,
+                frequency_mhz: 2412,
+                last_seen_ms: t,
+            })
+            .collect();
+        walk.wifi.push(WifiScan { t, entries });
+    }
+    wipdr_io::trace::write_walk_file(&walk, walks_dir.join("hostile.txt.gz")).unwrap();
+    let stderr = refused([
+        "eval".as_ref(),
+        "--schemes".as_ref(),
+        "wifi".as_ref(),
+        "--data".as_ref(),
+        dir.as_os_str(),
+    ]);
+    assert!(
+        stderr.contains("radio_map.max_aps") && stderr.contains("distinct APs"),
+        "{stderr}"
+    );
+}
+
+/// Seen on the old main: the same floor folder given twice to `eval` counted its walks
+/// twice, without a word.
+#[test]
+fn the_same_floor_given_twice_to_eval_is_read_once_with_a_warning() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulated_floor(tmp.path(), 5);
+    let walks_in = |json: &Path| -> usize {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        v["walks"].as_array().unwrap().len()
+    };
+    let run = |dirs: &[&Path], json: &Path| {
+        let mut c = wipdr();
+        c.args(["--no-cache", "eval", "--schemes", "pdr", "--json"])
+            .arg(json)
+            .arg("--data")
+            .args(dirs);
+        let out = c.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+    let (once, twice) = (tmp.path().join("once.json"), tmp.path().join("twice.json"));
+    run(&[&dir], &once);
+    let same = dir.join(".");
+    let stderr = run(&[&dir, &same, &dir], &twice);
+    assert!(stderr.contains("given more than once"), "{stderr}");
+    assert_eq!(walks_in(&twice), walks_in(&once));
+    // A floor inside a site given with the site itself is refused (its walks would count
+    // twice).
+    let site = dir.parent().unwrap();
+    let stderr = refused([
+        "eval".as_ref(),
+        "--schemes".as_ref(),
+        "pdr".as_ref(),
+        "--data".as_ref(),
+        site.as_os_str(),
+        dir.as_os_str(),
+    ]);
+    assert!(stderr.contains("inside"), "{stderr}");
+}
+
+/// Seen on the old main: `nan` for an optional number read as "not set" (TOML `nan` became
+/// JSON `null`), `max_entry_age_ms = -1` emptied the radio map with an error blaming
+/// `matcher.k`, a huge spatial lattice was accepted: each is now refused naming the field.
+#[test]
+fn bad_eval_config_values_are_refused_naming_file_and_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulated_floor(tmp.path(), 5);
+    for (i, (text, field)) in [
+        ("score_first_m = nan\n", "score_first_m"),
+        ("[query]\nmin_rssi_dbm = nan\n", "query.min_rssi_dbm"),
+        ("[radio_map]\ngrid_cell_m = nan\n", "radio_map.grid_cell_m"),
+        (
+            "[radio_map]\nmax_entry_age_ms = -1\n",
+            "radio_map.max_entry_age_ms",
+        ),
+        ("[radio_map]\nmax_aps = 0\n", "radio_map.max_aps"),
+        (
+            "[radio_map.interpolation.spatial]\ncell_m = 0.001\nmax_points = 1000000000\n",
+            "max_points",
+        ),
+        (
+            "[schemes.my_ekf]\nq_heading_deg = 3.0\n",
+            "scheme = \"ekf\"",
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let cfg = write_file(tmp.path(), &format!("c{i}.toml"), text);
+        let stderr = refused([
+            "eval".as_ref(),
+            "--schemes".as_ref(),
+            "wifi".as_ref(),
+            "--data".as_ref(),
+            dir.as_os_str(),
+            "--config".as_ref(),
+            cfg.as_os_str(),
+        ]);
+        assert!(
+            stderr.contains(field) && stderr.contains(&format!("c{i}.toml")),
+            "{text}: {stderr}"
+        );
+        assert!(!stderr.contains("matcher.k"), "{text}: {stderr}");
+    }
+}
+
+/// A benchmark dataset folder with the given CSV texts.
+fn dataset(root: &Path, name: &str, train: &str, test: &str) -> PathBuf {
+    let dir = root.join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("train.csv"), train).unwrap();
+    std::fs::write(dir.join("test.csv"), test).unwrap();
+    dir
+}
+
+/// Seen on the old main: `fingerprint-eval` printed `mean2d 0.00` (exit 0) for a test set
+/// with nothing to score, a 35.6 m tie result for a training set where no AP is heard, and
+/// a finite 2D mean beside an infinite 3D one for a label at x = 1e308.
+#[test]
+fn degenerate_fingerprint_datasets_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let header = "ap_000,ap_001,x,y,z,floor,building\n";
+    let train = format!(
+        "{header}-60,-70,0,0,0,0,0\n-70,-60,10,0,0,0,0\n-65,-65,5,5,0,0,0\n-80,-50,20,3,0,0,0\n"
+    );
+    let good_test = format!("{header}-62,-68,1,0,0,0,0\n");
+    let deaf = format!("{header}100,100,0,0,0,0,0\n100,100,10,0,0,0,0\n100,100,35,0,0,0,0\n");
+    for (name, train, test, want) in [
+        (
+            "header_only",
+            train.clone(),
+            header.to_string(),
+            "no test query",
+        ),
+        (
+            "not_heard",
+            train.clone(),
+            format!("{header}100,100,1,0,0,0,0\n100,100,2,0,0,0,0\n"),
+            "no test query",
+        ),
+        (
+            "deaf_train",
+            deaf,
+            good_test.clone(),
+            "no access point is heard",
+        ),
+        (
+            "huge_label",
+            train.clone(),
+            format!("{header}-62,-68,1e308,0,0,0,0\n"),
+            "line 2, column 3 (x)",
+        ),
+        (
+            "huge_train_label",
+            format!("{header}-60,-70,0,1e200,0,0,0\n"),
+            good_test.clone(),
+            "line 2, column 4 (y)",
+        ),
+    ] {
+        let dir = dataset(tmp.path(), name, &train, &test);
+        let stderr = refused([
+            "fingerprint-eval".as_ref(),
+            "--matcher".as_ref(),
+            "wknn".as_ref(),
+            "--dataset".as_ref(),
+            dir.as_os_str(),
+        ]);
+        assert!(stderr.contains(want), "{name}: {stderr}");
+    }
+    // The good one still runs.
+    let dir = dataset(tmp.path(), "good", &train, &good_test);
+    let out = wipdr()
+        .args(["fingerprint-eval", "--matcher", "wknn", "--dataset"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+}

@@ -279,3 +279,135 @@ fn a_real_floor_report_renders_in_chromium() {
     };
     check_rendered(&render(&browser, &page), walks_of(&results).len(), 4);
 }
+
+/// Replaces every string equal to a key of `names` (values and object keys) in `v`.
+fn rename_all(v: &mut Value, names: &std::collections::BTreeMap<String, String>) {
+    match v {
+        Value::String(s) => {
+            if let Some(n) = names.get(s.as_str()) {
+                *s = n.clone();
+            }
+        }
+        Value::Array(items) => items.iter_mut().for_each(|x| rename_all(x, names)),
+        Value::Object(fields) => {
+            let old = std::mem::take(fields);
+            for (k, mut x) in old {
+                rename_all(&mut x, names);
+                fields.insert(names.get(&k).cloned().unwrap_or(k), x);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// Markup, script and template syntax in every string a results JSON carries (scheme names,
+/// floor names, walk ids, config keys and values, the plan image) reach the page as text:
+/// nothing injected is an element, nothing runs. Seen on the old main: a scheme name went
+/// through `innerHTML` in the readout of the chosen walk, and its `onerror` ran.
+#[test]
+fn crafted_strings_in_a_results_json_reach_the_page_as_text() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"));
+    let json = tmp.path().join("r.json");
+    wipdr(
+        &[
+            "eval",
+            "--data",
+            dir.to_str().unwrap(),
+            "--schemes",
+            "wifi,pdr",
+            "--json",
+            json.to_str().unwrap(),
+            "--json-tracks",
+        ],
+        tmp.path(),
+    );
+    let mut results: Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let mut names = std::collections::BTreeMap::new();
+    names.insert(
+        "wifi".to_owned(),
+        r#"<img id="pwned-s" src=x onerror="document.body.dataset.pwned='s'">"#.to_owned(),
+    );
+    names.insert(
+        "pdr".to_owned(),
+        r#"{{ 7*7 }}{% raw %}<svg id="pwned-t" onload="document.body.dataset.pwned='t'">"#
+            .to_owned(),
+    );
+    let floor = results["walks"][0]["floor"].as_str().unwrap().to_owned();
+    names.insert(
+        floor,
+        r#""><svg id="pwned-f" onload="document.body.dataset.pwned='f'"></script>"#.to_owned(),
+    );
+    for (i, w) in walks_of(&results).into_iter().enumerate() {
+        names.insert(
+            w.1,
+            format!(
+                r#"</script><script>document.body.dataset.pwned='w{i}'</script><b id="pwned-w{i}">{{{{ walk_count }}}}"#
+            ),
+        );
+    }
+    rename_all(&mut results, &names);
+    results["config"]["note"] = Value::String(
+        r#"{{ 7*7 }}</pre><img id="pwned-c" src=x onerror="document.body.dataset.pwned='c'">"#
+            .to_owned(),
+    );
+    results["config"][r#"<img id="pwned-k" src=x onerror="document.body.dataset.pwned='k'">"#] =
+        Value::from(1);
+    for plan in results["plans"].as_object_mut().unwrap().values_mut() {
+        plan["image"] = Value::String("javascript:document.body.dataset.pwned='i'".to_owned());
+    }
+    let walks = walks_of(&results).len();
+    let (crafted, page) = (
+        tmp.path().join("crafted.json"),
+        tmp.path().join("crafted.html"),
+    );
+    std::fs::write(&crafted, serde_json::to_string(&results).unwrap()).unwrap();
+    wipdr(
+        &[
+            "report",
+            crafted.to_str().unwrap(),
+            "--out",
+            page.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    for needle in [
+        "<img id=\"pwned",
+        "<svg id=\"pwned",
+        "<b id=\"pwned",
+        "javascript:",
+    ] {
+        assert!(!html.contains(needle), "{needle} in the page's source");
+    }
+    let Some(browser) = browser_or_skip() else {
+        return;
+    };
+    let r = render(&browser, &page);
+    // The page works: its script ran, listed and drew every walk.
+    check_rendered(&r, walks, 2);
+    // Nothing injected became an element or ran.
+    for needle in [
+        "<img id=\"pwned",
+        "<svg id=\"pwned",
+        "<b id=\"pwned",
+        "data-pwned",
+        "javascript:",
+    ] {
+        assert!(!r.dom.contains(needle), "{needle} in the rendered page");
+    }
+    // The strings are there as text, template syntax untouched.
+    for text in [
+        r#"&lt;img id="pwned-s" src=x onerror="document.body.dataset.pwned='s'"&gt;"#,
+        r#"{{ 7*7 }}{% raw %}&lt;svg id="pwned-t""#,
+        r#""&gt;&lt;svg id="pwned-f""#,
+        r#"&lt;/script&gt;&lt;script&gt;document.body.dataset.pwned='w0'"#,
+        "{{ walk_count }}",
+        // The config is shown as pretty JSON: its quotes escaped.
+        r#"{{ 7*7 }}&lt;/pre&gt;&lt;img id=\"pwned-c\""#,
+        r#"&lt;img id=\"pwned-k\""#,
+    ] {
+        assert!(r.dom.contains(text), "{text} not shown as text");
+    }
+}

@@ -153,6 +153,43 @@ impl EvalConfig {
     }
 }
 
+/// Reads TOML text into the JSON value the config readers merge and deserialise, refusing
+/// what JSON cannot hold: a non-finite float (`nan`, `inf`) is an error naming its dotted
+/// path. (serde_json turns a NaN into `null`, which an optional field would read as "not
+/// set" and a required one report as "invalid type: null".)
+///
+/// ```
+/// let v = wipdr_eval::config::toml_to_json("[query]\nmin_rssi_dbm = -80.0").unwrap();
+/// assert_eq!(v["query"]["min_rssi_dbm"], -80.0);
+/// let e = wipdr_eval::config::toml_to_json("[query]\nmin_rssi_dbm = nan").unwrap_err();
+/// assert!(e.starts_with("query.min_rssi_dbm: NaN is not a finite number"), "{e}");
+/// ```
+pub fn toml_to_json(text: &str) -> Result<serde_json::Value, String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+    for (key, value) in &table {
+        non_finite(value, key)?;
+    }
+    serde_json::to_value(&table).map_err(|e| e.to_string())
+}
+
+/// The first non-finite float in `value` (at dotted `path`), as an error.
+fn non_finite(value: &toml::Value, path: &str) -> Result<(), String> {
+    match value {
+        toml::Value::Float(f) if !f.is_finite() => Err(format!(
+            "{path}: {f} is not a finite number (write a finite value, or \"off\" where the \
+             field can be turned off)"
+        )),
+        toml::Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .try_for_each(|(i, v)| non_finite(v, &format!("{path}[{i}]"))),
+        toml::Value::Table(t) => t
+            .iter()
+            .try_for_each(|(k, v)| non_finite(v, &format!("{path}.{k}"))),
+        _ => Ok(()),
+    }
+}
+
 /// Keys of earlier config versions, with what replaced them.
 const REMOVED_KEYS: [(&str, &str); 3] = [
     (
@@ -178,12 +215,33 @@ impl EvalConfig {
             origin: source.to_string(),
             reason,
         };
-        let mut user: serde_json::Value = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let mut user: serde_json::Value = toml_to_json(text).map_err(bad)?;
         let mut base = Self::default();
         if let Some(fields) = user.as_object_mut() {
             for (key, instead) in REMOVED_KEYS {
                 if fields.contains_key(key) {
                     return Err(bad(format!("{key}: no longer a config key: {instead}")));
+                }
+            }
+            // A scheme table may leave out `scheme` when its name is a scheme's.
+            if let Some(serde_json::Value::Object(schemes)) = fields.get_mut("schemes") {
+                for (name, table) in schemes.iter_mut() {
+                    let serde_json::Value::Object(t) = table else {
+                        continue;
+                    };
+                    if t.contains_key("scheme") {
+                        continue;
+                    }
+                    if wipdr_fusion::scheme_names().contains(&name.as_str()) {
+                        t.insert("scheme".into(), serde_json::Value::String(name.clone()));
+                    } else {
+                        return Err(bad(format!(
+                            "schemes.{name}: no `scheme` field, and {name:?} is not a scheme's \
+                             name: say which scheme the table configures, e.g. \
+                             `scheme = \"ekf\"` (schemes: {})",
+                            wipdr_fusion::scheme_names().join(", ")
+                        )));
+                    }
                 }
             }
             match fields.remove("preset") {
@@ -219,6 +277,12 @@ impl EvalConfig {
             })?;
         if let Err((field, reason)) = self.calibration.validate() {
             return Err(invalid(&format!("calibration.{field}"), reason));
+        }
+        if let Err((field, reason)) = self.query.validate_fields() {
+            return Err(invalid(&format!("query.{field}"), reason));
+        }
+        if let Err((field, reason)) = self.radio_map.validate_fields() {
+            return Err(invalid(&format!("radio_map.{field}"), reason));
         }
         if let Some(i) = &self.radio_map.interpolation {
             i.validate()
@@ -487,6 +551,79 @@ pub(crate) mod tests {
                 .to_string();
             assert!(e.contains(path), "{text}: {e}");
         }
+    }
+
+    /// Seen on the old main: TOML `nan` became JSON `null`, read by an optional field as
+    /// "not set" (the threshold silently off), and by a required one as "invalid type: null,
+    /// expected f64"; `max_entry_age_ms = -1` was accepted and emptied the radio map.
+    #[test]
+    fn non_finite_and_negative_values_are_refused_naming_the_field() {
+        for (text, path) in [
+            ("score_first_m = nan", "score_first_m"),
+            ("score_first_m = inf", "score_first_m"),
+            ("[query]\nmin_rssi_dbm = nan", "query.min_rssi_dbm"),
+            ("[radio_map]\ngrid_cell_m = nan", "radio_map.grid_cell_m"),
+            (
+                "[radio_map.radio]\nnot_heard_dbm = nan",
+                "radio_map.radio.not_heard_dbm",
+            ),
+            ("[schemes.ekf]\nr_wifi_m2 = -inf", "schemes.ekf.r_wifi_m2"),
+            (
+                "[radio_map]\nmax_entry_age_ms = -1",
+                "radio_map.max_entry_age_ms",
+            ),
+            (
+                "[radio_map]\nmax_waypoint_gap_ms = -5",
+                "radio_map.max_waypoint_gap_ms",
+            ),
+            ("[query]\nmax_age_ms = -1", "query.max_age_ms"),
+            ("[radio_map]\nmax_aps = 2000000", "radio_map.max_aps"),
+            (
+                "[radio_map]\nmax_table_mib = 100000",
+                "radio_map.max_table_mib",
+            ),
+            (
+                "[radio_map.interpolation.spatial]\ncell_m = 0.001\nmax_points = 1000000000",
+                "spatial.max_points",
+            ),
+            (
+                "[propagation]\nmax_points = 1000000000",
+                "propagation.max_points",
+            ),
+        ] {
+            let e = EvalConfig::from_toml(text, "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(path) && e.contains("t.toml"), "{text}: {e}");
+            assert!(!e.contains("invalid type: null"), "{text}: {e}");
+        }
+        let cfg = EvalConfig::from_toml("[radio_map]\nmax_entry_age_ms = 0", "t").unwrap();
+        assert_eq!(cfg.radio_map.max_entry_age_ms, Some(0));
+    }
+
+    /// Seen on the old main: `[schemes.ekf]` without `scheme = "ekf"` said only "missing
+    /// field `scheme`".
+    #[test]
+    fn a_scheme_table_takes_its_kind_from_its_name() {
+        let cfg = EvalConfig::from_toml("[schemes.ekf]\nq_heading_deg = 3.0\n", "t").unwrap();
+        let Ok(SchemeConfig::Ekf(ekf)) = cfg.scheme("ekf") else {
+            panic!("ekf section");
+        };
+        assert_eq!(ekf.q_heading_deg, 3.0);
+        let e = EvalConfig::from_toml("[schemes.fast]\nq_heading_deg = 3.0\n", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("schemes.fast") && e.contains("scheme = \"ekf\"") && e.contains("t.toml"),
+            "{e}"
+        );
+        // An explicit kind under another name still works.
+        let cfg = EvalConfig::from_toml(
+            "[schemes.fast]\nscheme = \"ekf\"\nq_heading_deg = 2.0\n",
+            "t",
+        )
+        .unwrap();
+        assert!(matches!(cfg.scheme("fast"), Ok(SchemeConfig::Ekf(_))));
     }
 
     /// The `.toml` files of `docs/<folder>` with their text (shipped configs and sweeps).

@@ -37,13 +37,60 @@ pub enum FingerprintError {
         /// The query's number of columns.
         found: usize,
     },
+    /// A radio map whose reference points hear no access point at all: every query would
+    /// be equally far from every point.
+    #[error(
+        "no access point is heard at any of the radio map's {points} reference points ({aps} AP \
+         columns, all \"not heard\"): nothing to match against"
+    )]
+    NothingHeard {
+        /// Reference points.
+        points: usize,
+        /// AP columns.
+        aps: usize,
+    },
     /// A radio map without reference points.
     #[error("the radio map has no reference points")]
     EmptyMap,
     /// An invalid configuration value.
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
+    /// A limit on memory crossed (before the memory is allocated): what was asked for, the
+    /// limit's config field and value, and how to raise it (boxed: the error stays small).
+    #[error("{0}")]
+    LimitExceeded(Box<LimitError>),
     /// Invalid input data while building a map (names the item).
     #[error("invalid input: {0}")]
     InvalidInput(String),
+}
+
+/// The details of [`FingerprintError::LimitExceeded`].
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("{what}: over the limit `{limit}` = {max}; {hint}")]
+pub struct LimitError {
+    /// What would have been allocated.
+    pub what: String,
+    /// The config field of the limit (dotted path).
+    pub limit: String,
+    /// The limit's value.
+    pub max: String,
+    /// How to raise it.
+    pub hint: String,
+}
+
+impl FingerprintError {
+    /// A [`FingerprintError::LimitExceeded`].
+    pub fn limit_exceeded(
+        what: impl Into<String>,
+        limit: impl Into<String>,
+        max: impl ToString,
+        hint: impl Into<String>,
+    ) -> Self {
+        Self::LimitExceeded(Box::new(LimitError {
+            what: what.into(),
+            limit: limit.into(),
+            max: max.to_string(),
+            hint: hint.into(),
+        }))
+    }
 }

@@ -46,7 +46,7 @@
 
 use crate::FingerprintError;
 use crate::radio_map::{
-    MAX_VALID_RSSI_DBM, MIN_VALID_RSSI_DBM, RadioMap, ReferencePoint, is_valid_rssi,
+    MAX_VALID_RSSI_DBM, MIN_VALID_RSSI_DBM, RadioMap, ReferencePoint, TableBudget, is_valid_rssi,
 };
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -214,6 +214,11 @@ pub struct SpatialConfig {
     pub max_points: usize,
 }
 
+/// Hard ceiling of [`SpatialConfig::max_points`]: 2 M lattice points (a 0.1 m lattice over
+/// 140 m x 140 m). The points a lattice may add are also bounded by the radio map's table
+/// budget ([`crate::radio_map::RadioMap::set_table_budget`]), checked as the lattice grows.
+pub const MAX_SPATIAL_POINTS_CEILING: usize = 2_000_000;
+
 impl Default for SpatialConfig {
     fn default() -> Self {
         Self {
@@ -257,6 +262,13 @@ impl SpatialConfig {
         }
         if self.min_sources == 0 {
             return Err(invalid("spatial.min_sources must be >= 1".into()));
+        }
+        if !(1..=MAX_SPATIAL_POINTS_CEILING).contains(&self.max_points) {
+            return Err(invalid(format!(
+                "spatial.max_points must be in 1..={MAX_SPATIAL_POINTS_CEILING} (each lattice \
+                 point is a row of the radio map's dense table), got {}",
+                self.max_points
+            )));
         }
         self.kernel.validate()
     }
@@ -437,6 +449,23 @@ pub fn spatial(
     sources: &[SparsePrint],
     cfg: &SpatialConfig,
 ) -> Result<(Vec<InterpolatedPrint>, InterpolationReport), FingerprintError> {
+    spatial_within(sources, cfg, None)
+}
+
+/// Room for new rows in a radio map's dense table: its budget, its points and APs.
+#[derive(Clone, Copy)]
+struct Room {
+    budget: TableBudget,
+    points: usize,
+    aps: usize,
+}
+
+/// [`spatial`], the lattice also bounded by the table budget of the map it will be added to.
+fn spatial_within(
+    sources: &[SparsePrint],
+    cfg: &SpatialConfig,
+    room: Option<Room>,
+) -> Result<(Vec<InterpolatedPrint>, InterpolationReport), FingerprintError> {
     cfg.validate()?;
     let mut report = InterpolationReport::default();
     let finite: Vec<usize> = (0..sources.len())
@@ -493,6 +522,10 @@ pub fn spatial(
                     cfg.max_points,
                     sources.len()
                 )));
+            }
+            if let Some(room) = room {
+                room.budget
+                    .check(room.points.saturating_add(lattice.len()), room.aps)?;
             }
         }
     }
@@ -640,7 +673,12 @@ pub fn densify_spatially(
     cfg: &SpatialConfig,
 ) -> Result<InterpolationReport, FingerprintError> {
     let (sources, rows) = measured_prints(map);
-    let (made, report) = spatial(&sources, cfg)?;
+    let room = map.table_budget().map(|budget| Room {
+        budget,
+        points: map.len(),
+        aps: map.n_aps(),
+    });
+    let (made, report) = spatial_within(&sources, cfg, room)?;
     let points = map.points().to_vec();
     push_interpolated(map, &made, |k| points[rows[k]])?;
     tracing::debug!(?report, "spatial radio-map interpolation");

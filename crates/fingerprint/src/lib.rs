@@ -58,7 +58,7 @@ mod records;
 pub mod walk_map;
 
 pub use distance::{Distance, Metric, Representation};
-pub use error::FingerprintError;
+pub use error::{FingerprintError, LimitError};
 pub use knn::{FloorFirstMatcher, KnnConfig, KnnMatcher};
 pub use matcher::{Matcher, Weighting, majority, observation_from_neighbours, weights_of};
 pub use online::{MatcherConfig, MatcherModel, OnlineMatcher, ScanContext};

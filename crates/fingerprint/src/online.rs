@@ -330,6 +330,11 @@ impl MatcherConfig {
     /// Builds the matcher over `map` (clusters and indexes are built here, once).
     pub fn build(&self, map: Arc<RadioMap>) -> Result<MatcherModel, FingerprintError> {
         self.validate()?;
+        // An empty map is its own error, not a `k` too large (the cause is upstream: every
+        // scan dropped, e.g. by the staleness limit).
+        if map.is_empty() {
+            return Err(FingerprintError::EmptyMap);
+        }
         if self.k() > map.len() {
             return Err(FingerprintError::InvalidConfig(format!(
                 "matcher.k: {} neighbours asked of a radio map of {} reference points (lower k)",

@@ -29,6 +29,28 @@ pub struct QueryFilter {
     pub strict: bool,
 }
 
+impl QueryFilter {
+    /// Checks the values; the error is the field's name and what is wrong.
+    pub fn validate_fields(&self) -> Result<(), (&'static str, String)> {
+        if let Some(v) = self.min_rssi_dbm
+            && !v.is_finite()
+        {
+            return Err(("min_rssi_dbm", format!("must be finite, got {v}")));
+        }
+        if let Some(age) = self.max_age_ms
+            && age < 0
+        {
+            return Err((
+                "max_age_ms",
+                format!(
+                    "must be >= 0 ms (or \"off\" to keep every entry), got {age}: a negative age drops every entry"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// What the filtering did to one query.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub struct QueryStats {

@@ -203,7 +203,7 @@ pub struct ReferencePoint {
 /// assert_eq!(map.filled_row(0), &[-60.0, -110.0]);
 /// assert_eq!(map.rss(0, 1), None);
 /// ```
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RadioMap {
     /// The AP columns (`n_aps()` of them).
     vocabulary: ApVocabulary,
@@ -213,6 +213,57 @@ pub struct RadioMap {
     mean_dbm: Vec<f32>,
     counts: Vec<u16>,
     spread_db: Vec<f32>,
+    /// The most memory the dense table may take ([`RadioMap::set_table_budget`]); not part
+    /// of the map's value (not serialised, not compared).
+    #[serde(skip)]
+    budget: Option<TableBudget>,
+}
+
+/// Bytes one (reference point, AP) cell of the dense table takes: the mean (`f32`), the
+/// count (`u16`) and the spread (`f32`).
+pub const BYTES_PER_CELL: usize = 10;
+
+/// A ceiling on the memory of a radio map's dense table, and the config field that sets it
+/// (named in the error when a push would cross it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TableBudget {
+    /// The most bytes the table may take (`points x APs x` [`BYTES_PER_CELL`]).
+    pub max_bytes: usize,
+    /// The config field that sets it (`radio_map.max_table_mib`).
+    pub limit: &'static str,
+    /// How to raise it, for the error message.
+    pub hint: &'static str,
+}
+
+impl TableBudget {
+    /// Checks that a table of `points x aps` fits; the error names the limit.
+    pub fn check(&self, points: usize, aps: usize) -> Result<(), FingerprintError> {
+        let bytes = points.saturating_mul(aps).saturating_mul(BYTES_PER_CELL);
+        if bytes > self.max_bytes {
+            return Err(FingerprintError::limit_exceeded(
+                format!(
+                    "dense table of {points} reference points x {aps} APs ({} MiB)",
+                    bytes >> 20
+                ),
+                self.limit.to_string(),
+                format!("{} MiB", self.max_bytes >> 20),
+                self.hint.to_string(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl PartialEq for RadioMap {
+    /// The map's value: vocabulary, points, config and table; the budget does not count.
+    fn eq(&self, other: &Self) -> bool {
+        self.vocabulary == other.vocabulary
+            && self.points == other.points
+            && self.config == other.config
+            && self.mean_dbm == other.mean_dbm
+            && self.counts == other.counts
+            && self.spread_db == other.spread_db
+    }
 }
 
 impl RadioMap {
@@ -225,11 +276,40 @@ impl RadioMap {
             mean_dbm: Vec::new(),
             counts: Vec::new(),
             spread_db: Vec::new(),
+            budget: None,
+        }
+    }
+
+    /// Bounds the dense table's memory: a push ([`RadioMap::push_point`],
+    /// [`RadioMap::append_points_from`]) that would take it over `budget` is an error
+    /// ([`FingerprintError::LimitExceeded`]) before anything is allocated. Kept by
+    /// [`RadioMap::subset`]; `None` (the default) leaves the table unbounded.
+    pub fn set_table_budget(
+        &mut self,
+        budget: Option<TableBudget>,
+    ) -> Result<(), FingerprintError> {
+        if let Some(b) = &budget {
+            b.check(self.len(), self.n_aps())?;
+        }
+        self.budget = budget;
+        Ok(())
+    }
+
+    /// The table budget ([`RadioMap::set_table_budget`]).
+    pub fn table_budget(&self) -> Option<TableBudget> {
+        self.budget
+    }
+
+    fn check_room_for(&self, more_points: usize) -> Result<(), FingerprintError> {
+        match &self.budget {
+            Some(b) => b.check(self.len().saturating_add(more_points), self.n_aps()),
+            None => Ok(()),
         }
     }
 
     /// Builds a map from a benchmark table: one reference point per row, one sample per heard
-    /// AP, spread 0; floor/building from the labels.
+    /// AP, spread 0; floor/building from the labels. A table of rows none of which hears any
+    /// AP is [`FingerprintError::NothingHeard`] (every query would tie with every point).
     pub fn from_table(
         table: &FingerprintTable,
         config: RadioMapConfig,
@@ -258,6 +338,12 @@ impl RadioMap {
             }
             map.push_point(point_of_label(label), &row, None)?;
         }
+        if !map.is_empty() && map.counts.iter().all(|&c| c == 0) {
+            return Err(FingerprintError::NothingHeard {
+                points: map.len(),
+                aps: m,
+            });
+        }
         Ok(map)
     }
 
@@ -285,6 +371,7 @@ impl RadioMap {
                 found: c.len().min(s.len()),
             });
         }
+        self.check_room_for(1)?;
         if !(point.position.x.is_finite() && point.position.y.is_finite()) {
             return Err(FingerprintError::InvalidInput(format!(
                 "reference point {} has a non-finite position",
@@ -479,6 +566,7 @@ impl RadioMap {
     pub fn subset(&self, indices: &[usize]) -> Self {
         let m = self.n_aps();
         let mut out = Self::new(self.vocabulary.clone(), self.config);
+        out.budget = self.budget;
         for &i in indices {
             out.points.push(self.points[i]);
             out.mean_dbm
@@ -506,6 +594,7 @@ impl RadioMap {
                 found: other.n_aps(),
             });
         }
+        self.check_room_for(other.len().saturating_sub(from))?;
         for i in from..other.len() {
             let mut p = other.points[i];
             p.floor = floor;

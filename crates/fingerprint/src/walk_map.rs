@@ -20,7 +20,9 @@ use crate::interpolate::{
     InterpolationConfig, InterpolationReport, WalkScan, along_walk, densify_spatially,
     push_interpolated,
 };
-use crate::radio_map::{ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, is_valid_rssi};
+use crate::radio_map::{
+    ApVocabulary, RadioMap, RadioMapConfig, ReferencePoint, TableBudget, is_valid_rssi,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use wipdr_core::walk::{floor_of_waypoints, interpolate_waypoints};
@@ -67,6 +69,37 @@ pub struct WalkMapConfig {
     /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
     #[serde(with = "wipdr_core::off")]
     pub interpolation: Option<InterpolationConfig>,
+    /// The most distinct APs the map may have (its vocabulary, the dense table's columns):
+    /// more is [`FingerprintError::LimitExceeded`] naming `radio_map.max_aps`, checked before
+    /// the table is allocated. Default [`DEFAULT_MAX_APS`], at most [`MAX_APS_CEILING`].
+    #[serde(skip_serializing_if = "is_default_max_aps")]
+    pub max_aps: usize,
+    /// The most memory the map's dense table may take, MiB (measured and interpolated
+    /// points x APs x [`crate::radio_map::BYTES_PER_CELL`]): crossing it is
+    /// [`FingerprintError::LimitExceeded`] naming `radio_map.max_table_mib`, before the
+    /// memory is allocated. Default [`DEFAULT_MAX_TABLE_MIB`], at most
+    /// [`MAX_TABLE_MIB_CEILING`].
+    #[serde(skip_serializing_if = "is_default_max_table_mib")]
+    pub max_table_mib: usize,
+}
+
+/// Default of [`WalkMapConfig::max_aps`]: far above the real data (hundreds to a few
+/// thousand APs per floor).
+pub const DEFAULT_MAX_APS: usize = 100_000;
+/// Hard ceiling of [`WalkMapConfig::max_aps`].
+pub const MAX_APS_CEILING: usize = 1_000_000;
+/// Default of [`WalkMapConfig::max_table_mib`] (8 GiB).
+pub const DEFAULT_MAX_TABLE_MIB: usize = 8 * 1024;
+/// Hard ceiling of [`WalkMapConfig::max_table_mib`] (16 GiB, two thirds of the 24 GiB
+/// machines the project runs on).
+pub const MAX_TABLE_MIB_CEILING: usize = 16 * 1024;
+
+fn is_default_max_aps(v: &usize) -> bool {
+    *v == DEFAULT_MAX_APS
+}
+
+fn is_default_max_table_mib(v: &usize) -> bool {
+    *v == DEFAULT_MAX_TABLE_MIB
 }
 
 impl Default for WalkMapConfig {
@@ -80,6 +113,73 @@ impl Default for WalkMapConfig {
             floor: None,
             radio: RadioMapConfig::default(),
             interpolation: None,
+            max_aps: DEFAULT_MAX_APS,
+            max_table_mib: DEFAULT_MAX_TABLE_MIB,
+        }
+    }
+}
+
+impl WalkMapConfig {
+    /// Checks the values; the error is the field's name (relative to `radio_map`) and what
+    /// is wrong.
+    pub fn validate_fields(&self) -> Result<(), (&'static str, String)> {
+        if let Some(age) = self.max_entry_age_ms
+            && age < 0
+        {
+            return Err((
+                "max_entry_age_ms",
+                format!(
+                    "must be >= 0 ms (or \"off\" to keep every entry), got {age}: a negative age drops every entry"
+                ),
+            ));
+        }
+        if let Some(gap) = self.max_waypoint_gap_ms
+            && gap < 0
+        {
+            return Err(("max_waypoint_gap_ms", format!("must be >= 0 ms, got {gap}")));
+        }
+        if let Some(c) = self.grid_cell_m
+            && !(c.is_finite() && c > 0.0)
+        {
+            return Err(("grid_cell_m", format!("must be positive, got {c}")));
+        }
+        if !(1..=MAX_APS_CEILING).contains(&self.max_aps) {
+            return Err((
+                "max_aps",
+                format!("must be in 1..={MAX_APS_CEILING}, got {}", self.max_aps),
+            ));
+        }
+        if !(1..=MAX_TABLE_MIB_CEILING).contains(&self.max_table_mib) {
+            return Err((
+                "max_table_mib",
+                format!(
+                    "must be in 1..={MAX_TABLE_MIB_CEILING} MiB, got {}",
+                    self.max_table_mib
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the values ([`WalkMapConfig::validate_fields`]), the interpolation's too.
+    pub fn validate(&self) -> Result<(), FingerprintError> {
+        self.validate_fields().map_err(|(field, reason)| {
+            FingerprintError::InvalidConfig(format!("radio_map.{field}: {reason}"))
+        })?;
+        if let Some(i) = &self.interpolation {
+            i.validate()?;
+        }
+        Ok(())
+    }
+
+    /// The budget of the dense table ([`WalkMapConfig::max_table_mib`]).
+    pub fn table_budget(&self) -> TableBudget {
+        TableBudget {
+            max_bytes: self.max_table_mib.saturating_mul(1 << 20),
+            limit: "radio_map.max_table_mib",
+            hint: "raise it with `[radio_map] max_table_mib = N` (at most 16384), or build the \
+                   map from fewer walks, on a coarser grid (`grid_cell_m`) or with less \
+                   interpolation",
         }
     }
 }
@@ -125,16 +225,7 @@ pub fn build_from_walks<'a, I>(
 where
     I: IntoIterator<Item = &'a Walk>,
 {
-    if let Some(c) = config.grid_cell_m
-        && !(c.is_finite() && c > 0.0)
-    {
-        return Err(FingerprintError::InvalidConfig(format!(
-            "grid_cell_m must be positive, got {c}"
-        )));
-    }
-    if let Some(i) = &config.interpolation {
-        i.validate()?;
-    }
+    config.validate()?;
     let mut report = WalkMapReport::default();
     let mut prints: Vec<Fingerprint> = Vec::new();
     let walks: Vec<&Walk> = walks.into_iter().collect();
@@ -192,9 +283,29 @@ where
         .iter()
         .flat_map(|f| f.entries.iter().map(|e| e.0))
         .collect();
+    // Bounded before anything the size of the vocabulary (or of the table) is allocated.
+    if bssids.len() > config.max_aps {
+        return Err(FingerprintError::limit_exceeded(
+            format!(
+                "the training walks' {} distinct APs (the radio map's columns)",
+                bssids.len()
+            ),
+            "radio_map.max_aps",
+            config.max_aps.to_string(),
+            format!(
+                "raise it with `[radio_map] max_aps = N` (at most {MAX_APS_CEILING}), or leave \
+                 out the walks whose scans carry that many BSSIDs"
+            ),
+        ));
+    }
+    let budget = config.table_budget();
+    if config.grid_cell_m.is_none() {
+        budget.check(prints.len(), bssids.len())?;
+    }
     let vocabulary = ApVocabulary::from_bssids(bssids);
     let m = vocabulary.len();
     let mut map = RadioMap::new(vocabulary, config.radio);
+    map.set_table_budget(Some(budget))?;
     let column = |b: Bssid, map: &RadioMap| map.vocabulary().column_of_bssid(b).unwrap_or(0);
     match config.grid_cell_m {
         None => {
@@ -220,6 +331,7 @@ where
                 };
                 cells.entry((f.floor, bx, by)).or_default().push(i);
             }
+            budget.check(cells.len(), m)?;
             let mut sum = vec![0f64; m];
             let mut sum_sq = vec![0f64; m];
             let mut count = vec![0u32; m];

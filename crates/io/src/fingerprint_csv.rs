@@ -5,8 +5,9 @@
 //! query per line. RSS values are in dBm; the value `100` means "not detected"
 //! ([`NOT_DETECTED`]). `x, y, z` are metres, `floor` and `building` integers.
 //!
-//! The reader is strict: a ragged row, a number that does not parse, a non-finite value or an
-//! RSS outside `[-120, 0]` dBm (other than `100`) is a typed [`FingerprintCsvError`] naming the
+//! The reader is strict: a ragged row, a number that does not parse, a non-finite value, an
+//! RSS outside `[-120, 0]` dBm (other than `100`) or a label coordinate beyond
+//! [`MAX_ABS_LABEL_COORDINATE_M`] is a typed [`FingerprintCsvError`] naming the
 //! file, the 1-based line and column and the header field. The writer produces the same layout
 //! (the simulator writes its survey maps with it).
 //!
@@ -36,6 +37,12 @@ pub const NOT_DETECTED: f32 = FingerprintTable::NOT_HEARD;
 pub const MIN_VALID_RSS_DBM: f32 = -120.0;
 /// Strongest RSS accepted by the reader, dBm.
 pub const MAX_VALID_RSS_DBM: f32 = 0.0;
+
+/// Largest accepted absolute label coordinate (`x`, `y`, `z`), metres: projected
+/// coordinates (UTM northings, web-Mercator metres as in UJIIndoorLoc, up to 2e7) pass;
+/// absurd values such as `1e308`, whose errors would overflow to infinity in one score and
+/// not the other, are [`FingerprintCsvError::OutOfRange`].
+pub const MAX_ABS_LABEL_COORDINATE_M: f64 = 1e8;
 
 /// The trailing label columns, in file order.
 pub const LABEL_COLUMNS: [&str; 5] = ["x", "y", "z", "floor", "building"];
@@ -91,8 +98,12 @@ pub enum FingerprintCsvError {
         /// The offending text (at most 64 characters).
         value: String,
     },
-    /// A non-finite value, or an RSS outside `[-120, 0]` dBm that is not the not-detected marker.
-    #[error("{path}: line {line}, column {column} ({field}): value {value} out of range")]
+    /// A non-finite value, an RSS outside `[-120, 0]` dBm that is not the not-detected
+    /// marker, or a label coordinate beyond [`MAX_ABS_LABEL_COORDINATE_M`].
+    #[error(
+        "{path}: line {line}, column {column} ({field}): value {} out of range",
+        short_number(*value)
+    )]
     OutOfRange {
         /// The file.
         path: PathBuf,
@@ -124,6 +135,15 @@ pub enum FingerprintCsvError {
     /// A table whose parts disagree in size (writer side).
     #[error("inconsistent table: {0}")]
     Inconsistent(String),
+}
+
+/// A number for a message: huge or tiny magnitudes in exponent form (`1e308`, not 309 digits).
+fn short_number(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-6..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
 }
 
 impl From<RowLengthError> for FingerprintCsvError {
@@ -363,6 +383,9 @@ fn read_impl<R: BufRead>(
                 let k = col - n_aps;
                 if k >= 3 && (v.fract() != 0.0 || v.abs() > f64::from(i32::MAX)) {
                     return Err(bad());
+                }
+                if k < 3 && v.abs() > MAX_ABS_LABEL_COORDINATE_M {
+                    return Err(out_of_range());
                 }
                 label[k] = v;
             }

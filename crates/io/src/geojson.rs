@@ -298,10 +298,13 @@ pub fn plan_from_geojson(
     let sx = width / (bbox.max_lon - bbox.min_lon);
     let sy = height / (bbox.max_lat - bbox.min_lat);
     let to_m = |p: &[f64; 2]| Point2::new((p[0] - bbox.min_lon) * sx, (p[1] - bbox.min_lat) * sy);
-    let to_polygon = |rings: &Rings| -> Option<Polygon> {
+    // A ring is usable when it has area and does not cross itself: a bow tie has no inside
+    // a point-in-polygon test can agree on, and its edges would become walls across a room.
+    // Outline, unit and hole rings are checked alike.
+    let to_polygon = |rings: &Rings| -> Result<Polygon, &'static str> {
         let mut it = rings.iter().map(|r| r.iter().map(to_m).collect::<Vec<_>>());
-        let exterior = it.next()?;
-        let holes = it
+        let exterior = it.next().ok_or("degenerate")?;
+        let holes: Vec<Vec<Point2>> = it
             .filter_map(|mut h| {
                 if h.len() > 1 && h.first() == h.last() {
                     h.pop();
@@ -312,22 +315,21 @@ pub fn plan_from_geojson(
         // Zero area (collinear or repeated vertices): nothing to be inside of.
         let min_area = 1e-9 * width * height;
         if ring_area(&exterior).abs() <= min_area {
-            return None;
+            return Err("degenerate");
         }
-        Polygon::new(exterior, holes).ok()
+        if self_intersects(&exterior) || holes.iter().any(|h| self_intersects(h)) {
+            return Err("self-intersecting");
+        }
+        Polygon::new(exterior, holes).map_err(|_| "degenerate")
     };
     let mut skipped = 0usize;
     let mut outline = Vec::new();
     for (i, rings) in outline_polys.iter().enumerate() {
         match to_polygon(rings) {
-            Some(p) if self_intersects(&p.exterior) => {
+            Ok(p) => outline.push(p),
+            Err(why) => {
                 skipped += 1;
-                tracing::warn!(file = %path.display(), part = i, "self-intersecting outline polygon skipped");
-            }
-            Some(p) => outline.push(p),
-            None => {
-                skipped += 1;
-                tracing::warn!(file = %path.display(), part = i, "degenerate outline polygon skipped");
+                tracing::warn!(file = %path.display(), part = i, "{why} outline polygon skipped");
             }
         }
     }
@@ -353,15 +355,19 @@ pub fn plan_from_geojson(
                 tracing::debug!(file = %path.display(), feature = i, "non-polygon feature skipped");
             }
             Some(polys) => {
-                for rings in &polys {
+                for (part, rings) in polys.iter().enumerate() {
                     match to_polygon(rings) {
-                        Some(polygon) => units.push(Unit {
+                        Ok(polygon) => units.push(Unit {
                             name: name.clone(),
                             polygon,
                         }),
-                        None => {
+                        Err(why) => {
                             skipped += 1;
-                            tracing::debug!(file = %path.display(), feature = i, "degenerate unit polygon skipped");
+                            if why == "degenerate" {
+                                tracing::debug!(file = %path.display(), feature = i, part, unit = %name, "degenerate unit polygon skipped");
+                            } else {
+                                tracing::warn!(file = %path.display(), feature = i, part, unit = %name, "{why} unit polygon skipped");
+                            }
                         }
                     }
                 }

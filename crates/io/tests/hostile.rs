@@ -204,6 +204,32 @@ fn zero_area_and_self_intersecting_polygons_are_counted_skips() {
     }
 }
 
+/// Seen on the old main: unit (room) polygons that cross themselves (bow ties) were kept,
+/// and became walls; only the outline was checked. Units and holes are now checked like the
+/// outline: the polygon is skipped, counted and logged.
+#[test]
+fn self_intersecting_unit_polygons_and_holes_are_counted_skips() {
+    let outline = "[[0,0],[20,0],[20,10],[0,10],[0,0]]";
+    let room = "[[1,1],[3,1],[3,3],[1,3],[1,1]]";
+    // Not symmetric: a non-zero signed area, so not skipped as degenerate.
+    let bowtie = "[[5,1],[9,3],[9,1],[5,4],[5,1]]";
+    // Five vertices, the crossing between the first and the fourth edge.
+    let eight = "[[10,1],[13,1],[13,4],[11,0],[10,4],[10,1]]";
+    // A good room with a bow-tie hole.
+    let holed = "[[13,1],[19,1],[19,8],[13,8],[13,1]],[[14,2],[17,4],[17,2],[14,5],[14,2]]";
+    let text = geojson(outline, &[room, bowtie, eight, holed]);
+    let p = read_plan(&text, &Limits::default()).unwrap();
+    assert_eq!(p.plan.units.len(), 1, "only the square room is kept");
+    assert_eq!(p.skipped_features, 3);
+    // A MultiPolygon unit: the good part is kept, the bow tie skipped.
+    let multi = format!(
+        r#"{{"type":"FeatureCollection","features":[{{"type":"Feature","properties":{{}},"geometry":{{"type":"Polygon","coordinates":[{outline}]}}}},{{"type":"Feature","properties":{{"name":"m"}},"geometry":{{"type":"MultiPolygon","coordinates":[[{room}],[{bowtie}]]}}}}]}}"#
+    );
+    let p = read_plan(&multi, &Limits::default()).unwrap();
+    assert_eq!(p.plan.units.len(), 1);
+    assert_eq!(p.skipped_features, 1);
+}
+
 #[test]
 fn geojson_values_are_counted_before_the_tree_is_built() {
     // 300 000 numbers in one position: few vertices, many values.
@@ -295,4 +321,30 @@ fn fingerprint_csv_lines_size_columns_and_cells_are_limited() {
         .unwrap_err()
         .to_string();
     assert!(msg.contains("line 2: line length: more than the limit Limits::max_csv_line_bytes = 1048576; raise it"), "{msg}");
+}
+
+/// Seen on the old main: a label at x = 1e308 was read, and its error was infinite in 3D
+/// and left out of the finite 2D mean. Labels are range-checked on read, as waypoints are.
+#[test]
+fn fingerprint_labels_beyond_any_building_are_out_of_range() {
+    let header = "ap_000,x,y,z,floor,building\n";
+    for (row, column, field) in [
+        ("-60,1e308,0,0,0,0", 2, "x"),
+        ("-60,0,-1e200,0,0,0", 3, "y"),
+        ("-60,0,0,1e9,0,0", 4, "z"),
+    ] {
+        let text = format!("{header}-60,1,2,0,0,0\n{row}\n");
+        match read_fingerprint_csv_from_with(text.as_bytes(), "t.csv", &Limits::default()) {
+            Err(FingerprintCsvError::OutOfRange {
+                line,
+                column: c,
+                field: f,
+                ..
+            }) => assert_eq!((line, c, f.as_str()), (3, column, field)),
+            other => panic!("{row}: {other:?}"),
+        }
+    }
+    // Projected coordinates of real datasets (UJIIndoorLoc: northings near 4.86e6 m) read.
+    let text = format!("{header}-60,-7600.5,4864900.25,0,0,0\n");
+    read_fingerprint_csv_from_with(text.as_bytes(), "t.csv", &Limits::default()).unwrap();
 }

@@ -1,4 +1,5 @@
-//! Byte-mutation property tests of the trace, GeoJSON, fingerprint CSV and cache readers:
+//! Byte-mutation property tests of the trace, IPIN logfile, GeoJSON, fingerprint CSV and cache
+//! readers:
 //! any flipped, overwritten, inserted or cut bytes give `Ok` or a typed error, never a panic
 //! (the stable-toolchain stand-in for `cargo fuzz`, see `fuzz/README.md`).
 //!
@@ -8,7 +9,7 @@ use proptest::prelude::*;
 use std::path::Path;
 use wipdr_core::{FloorPlan, Point2, Walk, Waypoint};
 use wipdr_io::cache::{self, CacheOutcome, CacheSettings};
-use wipdr_io::{Limits, LonLatBox, ReadOptions, floor, trace};
+use wipdr_io::{Limits, LonLatBox, ReadOptions, floor, logfile, trace};
 
 /// Cases per property: `PROPTEST_CASES`, else `default`.
 fn cases(default: u32) -> u32 {
@@ -110,6 +111,34 @@ fn trace_inputs() -> (Vec<u8>, Vec<u8>) {
     (plain, std::fs::read(gz).unwrap())
 }
 
+/// An IPIN logfile with every record type the reader reads (and one it ignores), plain
+/// and gzip.
+fn logfile_inputs() -> (Vec<u8>, Vec<u8>) {
+    let text = "% LogFile created by the GetSensorData App for Android.\n\
+% Date of creation: Wed Jun 14 10:00:58 GMT+02:00 2023\n\
+% Model: \tSM-A520F\n\
+ACCE;0.05;100.00;0.1;0.2;9.8;3\n\
+ACCE;0.07;100.02;0.1;0.2;9.8;3\n\
+GYRO;0.06;100.01;0.01;0.02;0.03;3\n\
+MAGN;0.06;100.01;30.0;-5.0;-40.0;3\n\
+AHRS;0.08;100.03;1.0;2.0;90.0;0.01;0.02;0.7;3\n\
+PRES;0.09;100.04;1013.2;3\n\
+WIFI;0.65;100.6;net;20:23:00:00:00:01;2437;-60\n\
+WIFI;0.65;100.6;net;20:23:00:00:00:15;2452;-63\n\
+BLE4;0.70;iBeacon;E0:78:A3:3D:B5:D6;-80;-59;1;2;FDA50693A4E24FB1AFCFC6EB07647825\n\
+POSI;61.4235;1;49.4613;11.1109;0;100\n\
+POSI;70.0;2;49.4614;11.1110;-1;100\n\
+GNSS;0.96;1.0;49.46;11.11;346;79;9;0.1;22;19\n";
+    let mut gz = Vec::new();
+    {
+        use std::io::Write;
+        let mut enc = flate2::write::GzEncoder::new(&mut gz, flate2::Compression::default());
+        enc.write_all(text.as_bytes()).unwrap();
+        enc.finish().unwrap();
+    }
+    (text.as_bytes().to_vec(), gz)
+}
+
 fn write_floor(dir: &Path) {
     let plan = FloorPlan::rectangle(20.0, 10.0).unwrap();
     let mut w2 = Walk::default();
@@ -136,6 +165,31 @@ proptest! {
         // Ok (possibly with skips) or a typed error; a panic fails the test.
         match trace::read_walk_from(&bytes[..], "w", &small_limits()) {
             Ok(p) => prop_assert!(p.walk.waypoints.iter().all(|w| w.position.x.is_finite())),
+            Err(e) => prop_assert!(!e.full_message().is_empty()),
+        }
+    }
+
+    #[test]
+    fn mutated_logfiles_read_or_fail_typed(edits in proptest::collection::vec(edit(), 1..6), gz in any::<bool>()) {
+        let (plain, gzip) = logfile_inputs();
+        let bytes = apply(if gz { &gzip } else { &plain }, &edits);
+        let limits = small_limits();
+        // Ok (possibly with skips) or a typed error; a panic fails the test. What is read
+        // stays within the limits: memory bounded whatever the bytes say.
+        match logfile::read_logfile_from(&bytes[..], "IPIN_Trial01_repetition01", &limits) {
+            Ok(log) => {
+                let w = &log.walk;
+                let records = w.imu.accelerometer.len() + w.imu.gyroscope.len()
+                    + w.imu.magnetometer.len() + w.imu.rotation_vector.len()
+                    + w.pressure.len() + w.beacons.len() + log.ground_truth.len()
+                    + w.wifi.iter().map(|s| s.entries.len()).sum::<usize>();
+                prop_assert!(records <= limits.max_records, "{records} records");
+                prop_assert!(w.wifi.iter().all(|s| s.entries.len() <= limits.max_scan_entries));
+                prop_assert!(log.ground_truth.iter().all(|g| g.lat_deg.is_finite() && g.lon_deg.is_finite()));
+                let frame = wipdr_core::GeoFrame::new(49.4613, 11.1109).unwrap();
+                let walk = log.into_walk(&frame).walk;
+                prop_assert!(walk.waypoints.iter().all(|p| p.position.x.is_finite() && p.position.y.is_finite()));
+            }
             Err(e) => prop_assert!(!e.full_message().is_empty()),
         }
     }

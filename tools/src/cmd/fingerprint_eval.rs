@@ -181,12 +181,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| dir.display().to_string());
         let (train, test) = read_dataset(dir)?;
-        let map = Arc::new(RadioMap::from_table(
-            &train,
-            RadioMapConfig {
-                not_heard_dbm: args.not_heard,
-            },
-        )?);
+        let map = Arc::new(
+            RadioMap::from_table(
+                &train,
+                RadioMapConfig {
+                    not_heard_dbm: args.not_heard,
+                },
+            )
+            .with_context(|| format!("{name}: train.csv"))?,
+        );
         let mut queries = Vec::with_capacity(test.n_rows());
         let mut truth = Vec::with_capacity(test.n_rows());
         let mut skipped = 0usize;
@@ -207,6 +210,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         if skipped > 0 {
             eprintln!("{name}: {skipped} test rows without usable APs skipped");
+        }
+        if queries.is_empty() {
+            bail!(
+                "{name}: no test query to score: test.csv has {} rows, {skipped} of them without a usable AP (an empty test set scores nothing, not 0 m)",
+                test.n_rows()
+            );
         }
         for (spec, choice) in args.matcher.iter().zip(&choices) {
             // Cluster search, AP index, single-scan MED.

@@ -141,8 +141,8 @@ pub fn run(args: Args) -> Result<()> {
     }
     let text = std::fs::read_to_string(&spec_path)
         .with_context(|| format!("reading {}", spec_path.display()))?;
-    let spec: SweepSpec =
-        toml::from_str(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
+    let spec =
+        SweepSpec::from_toml(&text).with_context(|| format!("parsing {}", spec_path.display()))?;
     let base = crate::cmd::eval::load_config(args.base.as_deref())?;
     let shard = args
         .shard

@@ -12,6 +12,9 @@ use std::collections::BTreeMap;
 use wipdr_eval::drawing::{DrawnPoint, TimedPoint};
 use wipdr_eval::report::Summary;
 
+/// The only floor images the page draws: embedded PNGs.
+const PNG_DATA_URL: &str = "data:image/png;base64,";
+
 /// A scored point as the JSON has it: `[t_ms, error_m or null, floor_error or null]`.
 type PageScored = (i64, Option<f64>, Option<i32>);
 
@@ -300,12 +303,25 @@ pub fn render(value: &Value, source: &str) -> Result<String> {
             WalkRow { index: i, cells }
         })
         .collect();
+    // A floor image is drawn only as what `wipdr eval` embeds (a PNG data URL): a results
+    // file from elsewhere may hold any text there.
+    let mut plans = results.plans;
+    for plan in plans.values_mut() {
+        if let Some(fields) = plan.as_object_mut()
+            && !fields
+                .get("image")
+                .and_then(Value::as_str)
+                .is_some_and(|s| s.starts_with(PNG_DATA_URL))
+        {
+            fields.remove("image");
+        }
+    }
     let floor_count = results.floors.len();
     let data = json!({
         "schemes": schemes,
         "palette": PALETTE,
         "walks": walks,
-        "plans": results.plans,
+        "plans": plans,
         "has_tracks": has_tracks,
         "drawing": results.drawing,
     });

@@ -97,6 +97,15 @@ pub struct SweepSpec {
     pub random: Option<RandomSpec>,
 }
 
+impl SweepSpec {
+    /// Reads a sweep file ([`crate::config::toml_to_json`]: a non-finite number, such as a
+    /// `nan` in a grid, is an error naming its path).
+    pub fn from_toml(text: &str) -> Result<Self, SweepError> {
+        let value = crate::config::toml_to_json(text).map_err(SweepError::Spec)?;
+        serde_json::from_value(value).map_err(|e| SweepError::Spec(e.to_string()))
+    }
+}
+
 /// One config of a sweep: its index and parameter values by dotted path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepPoint {
@@ -162,6 +171,14 @@ impl SweepSpec {
         for (k, v) in &self.grid {
             if v.is_empty() {
                 return Err(SweepError::Spec(format!("grid {k:?} has no values")));
+            }
+            // A `null` is what a TOML `nan` becomes in JSON: it would set the field to "not
+            // set" (or fail late for a required field), never to the value written.
+            if let Some(i) = v.iter().position(Value::is_null) {
+                return Err(SweepError::Spec(format!(
+                    "grid {k:?}[{i}]: null (a nan?) is not a value: write a finite number, or \
+                     \"off\" where the field can be turned off"
+                )));
             }
         }
         if let Some(r) = &self.random {
@@ -332,6 +349,26 @@ mod tests {
             "#,
         )
         .unwrap()
+    }
+
+    /// Seen on the old main: a `nan` in a grid became `null`: the row's config was the base
+    /// config (same hash), the value silently dropped.
+    #[test]
+    fn a_nan_in_a_grid_is_refused_naming_it() {
+        let e = SweepSpec::from_toml("scheme = \"ekf\"\n[grid]\nscore_first_m = [10.0, nan]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("grid.score_first_m[1]") && e.contains("NaN"),
+            "{e}"
+        );
+        let parsed: SweepSpec =
+            toml::from_str("scheme = \"ekf\"\n[grid]\nscore_first_m = [10.0, nan]\n").unwrap();
+        let e = parsed.check(100).unwrap_err().to_string();
+        assert!(e.contains("score_first_m") && e.contains("[1]"), "{e}");
+        let ok = SweepSpec::from_toml("scheme = \"ekf\"\n[grid]\nscore_first_m = [10.0, 20.0]\n")
+            .unwrap();
+        assert_eq!(ok.check(100).unwrap(), 2);
     }
 
     #[test]

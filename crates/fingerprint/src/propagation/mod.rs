@@ -337,8 +337,12 @@ impl PropagationConfig {
                 self.min_aps
             )));
         }
-        if self.max_points == 0 {
-            return Err(invalid("propagation.max_points must be >= 1".into()));
+        let ceiling = crate::interpolate::MAX_SPATIAL_POINTS_CEILING;
+        if !(1..=ceiling).contains(&self.max_points) {
+            return Err(invalid(format!(
+                "propagation.max_points must be in 1..={ceiling}, got {}",
+                self.max_points
+            )));
         }
         Ok(())
     }
