@@ -2,7 +2,7 @@
 //! saved), and the online pipeline from Python, one sample at a time.
 
 use crate::convert::{config_of, entries_of, f64_rows, scan_of, time_of, to_array};
-use crate::errors::{chain, eval_error, input_error};
+use crate::errors::{PyErrorKind, chain, eval_error, input_error, py_error};
 use crate::floor::{PyFloor, PyFloorPlan};
 use crate::walk::PyWalk;
 use numpy::PyArray2;
@@ -117,7 +117,7 @@ impl PySiteModel {
     fn load(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Self> {
         let model = py
             .detach(|| SiteModel::load(&path))
-            .map_err(|e| input_error(chain(&e)))?;
+            .map_err(|e| py_error(PyErrorKind::Data, chain(&e)))?;
         Ok(Self {
             model,
             calibrated: true,
@@ -127,7 +127,7 @@ impl PySiteModel {
     /// Writes the model to ``path`` (a checked binary file; see ``docs/guide.md``).
     fn save(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
         py.detach(|| self.model.save(&path))
-            .map_err(|e| input_error(chain(&e)))
+            .map_err(|e| py_error(PyErrorKind::Data, chain(&e)))
     }
 
     /// The site's name.

@@ -121,3 +121,45 @@ def test_smooth_refuses_a_known_start(floor):
     push_all(p, walk)
     with pytest.raises(ValueError, match="smooth"):
         p.smooth()
+
+
+def test_a_site_model_saved_and_loaded_positions_as_before(floor, tmp_path):
+    walk, training = split(floor, 1)
+    model = wipdr.SiteModel.fit(wipdr.Floor(training, plan=floor.plan, name=floor.name))
+    assert wipdr.RadioMap is wipdr.SiteModel
+    path = tmp_path / "f1.wipdr"
+    model.save(path)
+    loaded = wipdr.SiteModel.load(path)
+    assert len(loaded) == len(model) and loaded.n_aps == model.n_aps
+    assert loaded.provenance["training_walks"] == len(training)
+    tracks = []
+    for m in (model, loaded):
+        p = wipdr.Positioner(m, "pmf", stream_id=walk.id)
+        push_all(p, walk)
+        tracks.append(p.track())
+    assert len(tracks[0]) > 20
+    assert_tracks_equal(tracks[0], tracks[1])
+
+
+def test_a_model_from_wipdr_fit_positions_as_locate_model(floor, wipdr_bin, tmp_path):
+    walk = floor.walks[0]
+    model_path = tmp_path / "f1.wipdr"
+    run_cli(wipdr_bin, "fit", "--data", FIXTURE_FLOOR, "--out", model_path)
+    walk_file = FIXTURE_FLOOR / "path_data_files" / f"{walk.id}.txt.gz"
+    out = tmp_path / "track.csv"
+    run_cli(wipdr_bin, "locate", "--model", model_path, walk_file, "--scheme", "ekf", "--out", out)
+    with out.open() as f:
+        rows = list(csv.DictReader(f))
+    cli = np.array(
+        [[float(r["t_ms"]), float(r["x"]), float(r["y"]), float(r["floor"] or "nan"), float(r["sd_m"] or "nan")] for r in rows]
+    )
+    p = wipdr.Positioner(wipdr.SiteModel.load(model_path), "ekf", stream_id=walk.id)
+    push_all(p, walk)
+    assert_tracks_equal(p.track(), cli)
+
+
+def test_a_damaged_model_file_is_a_data_error(tmp_path):
+    path = tmp_path / "bad.wipdr"
+    path.write_bytes(b"WIPDRSM\0" + bytes(40))
+    with pytest.raises(wipdr.DataError, match="bad.wipdr"):
+        wipdr.SiteModel.load(path)

@@ -165,29 +165,7 @@ impl EvalConfig {
 /// assert!(e.starts_with("query.min_rssi_dbm: NaN is not a finite number"), "{e}");
 /// ```
 pub fn toml_to_json(text: &str) -> Result<serde_json::Value, String> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
-    for (key, value) in &table {
-        non_finite(value, key)?;
-    }
-    serde_json::to_value(&table).map_err(|e| e.to_string())
-}
-
-/// The first non-finite float in `value` (at dotted `path`), as an error.
-fn non_finite(value: &toml::Value, path: &str) -> Result<(), String> {
-    match value {
-        toml::Value::Float(f) if !f.is_finite() => Err(format!(
-            "{path}: {f} is not a finite number (write a finite value, or \"off\" where the \
-             field can be turned off)"
-        )),
-        toml::Value::Array(items) => items
-            .iter()
-            .enumerate()
-            .try_for_each(|(i, v)| non_finite(v, &format!("{path}[{i}]"))),
-        toml::Value::Table(t) => t
-            .iter()
-            .try_for_each(|(k, v)| non_finite(v, &format!("{path}.{k}"))),
-        _ => Ok(()),
-    }
+    wipdr_positioning::merge::toml_to_json(text)
 }
 
 /// Keys of earlier config versions, with what replaced them.

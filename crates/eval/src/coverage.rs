@@ -10,7 +10,7 @@
 //! (`wipdr eval --by-coverage 5,10,20`).
 //!
 //! ```
-//! use wipdr_core::Waypoint;
+//! use wipdr_core::Point2;
 //! use wipdr_eval::coverage::{MeasuredPoint, coverage_distance};
 //! let map = [MeasuredPoint { position: Point2::new(0.0, 0.0), floor: Some(0) },
 //!            MeasuredPoint { position: Point2::new(3.0, 4.0), floor: Some(-2) }];

@@ -188,4 +188,16 @@ mod tests {
             None
         );
     }
+
+    /// TOML's `nan` would reach serde as null and turn an optional threshold off: refused,
+    /// naming the field.
+    #[test]
+    fn a_nan_is_refused_naming_the_field() {
+        let e = PositionerConfig::from_toml("[query]\nmin_rssi_dbm = nan").unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("query.min_rssi_dbm: NaN is not a finite number"),
+            "{e}"
+        );
+    }
 }

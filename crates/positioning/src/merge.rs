@@ -115,13 +115,51 @@ pub fn from_value_with_path<T: DeserializeOwned>(value: Value) -> Result<T, Posi
     })
 }
 
-/// Reads TOML `text` as a `T`, merged onto `defaults` (see the module docs).
+/// Reads TOML `text` as a `T`, merged onto `defaults` (see the module docs). A non-finite
+/// number (`nan`, `inf`) anywhere is an error naming its dotted path ([`toml_to_json`]).
 pub fn from_toml_onto<T: Serialize + DeserializeOwned>(
     text: &str,
     defaults: &T,
 ) -> Result<T, PositioningError> {
-    let user: Value = toml::from_str(text).map_err(|e| PositioningError::Parse(e.to_string()))?;
+    let user: Value = toml_to_json(text).map_err(PositioningError::Parse)?;
     from_value_onto(user, defaults)
+}
+
+/// TOML text as the JSON value the configs merge, refusing non-finite numbers: TOML's `nan`
+/// and `inf` have no JSON form (serde_json writes them as `null`, which an optional field
+/// would read as "not set", turning a threshold silently off), so any of them is an error
+/// naming its dotted path.
+///
+/// ```
+/// let v = wipdr_positioning::merge::toml_to_json("[query]\nmin_rssi_dbm = -80.0").unwrap();
+/// assert_eq!(v["query"]["min_rssi_dbm"], -80.0);
+/// let e = wipdr_positioning::merge::toml_to_json("[query]\nmin_rssi_dbm = nan").unwrap_err();
+/// assert!(e.starts_with("query.min_rssi_dbm: NaN is not a finite number"), "{e}");
+/// ```
+pub fn toml_to_json(text: &str) -> Result<Value, String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+    for (key, value) in &table {
+        non_finite(value, key)?;
+    }
+    serde_json::to_value(&table).map_err(|e| e.to_string())
+}
+
+/// The first non-finite float in `value` (at dotted `path`), as an error.
+fn non_finite(value: &toml::Value, path: &str) -> Result<(), String> {
+    match value {
+        toml::Value::Float(f) if !f.is_finite() => Err(format!(
+            "{path}: {f} is not a finite number (write a finite value, or \"off\" where the \
+             field can be turned off)"
+        )),
+        toml::Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .try_for_each(|(i, v)| non_finite(v, &format!("{path}[{i}]"))),
+        toml::Value::Table(t) => t
+            .iter()
+            .try_for_each(|(k, v)| non_finite(v, &format!("{path}.{k}"))),
+        _ => Ok(()),
+    }
 }
 
 /// [`from_toml_onto`] for a value already parsed (JSON, or a sweep's patched TOML).
