@@ -1,10 +1,11 @@
 //! `wipdr score --truth GT.csv EST_FILE...`: the IPIN competition's official scoring of EvAAL
 //! API estimates files against a trial's ground truth ([`wipdr_eval::evaal_score`]), one row
-//! per estimates file with the organisers' columns in their order and their layout:
+//! per estimates file with the organisers' columns in their order and their layout (fields
+//! separated by tabs, shown here as spaces):
 //!
 //! ```text
-//! TeamName-FileId     	EvAAL  	MEAN   	RMSE   	MEDIAN 	P95    	FHR(%) 	MPExy  	POINTS
-//!       S323ZENODOTS01:	   5.75	   5.01	   6.47	   3.80	  16.34	  94.20	   4.14	69
+//! TeamName-FileId      EvAAL    MEAN     RMSE     MEDIAN   P95      FHR(%)   MPExy    POINTS
+//!       S323ZENODOTS01:   5.75     5.01     6.47     3.80    16.34    94.20     4.14   69
 //! ```
 //!
 //! The row's name is the estimates file's name without its extension. With `--json` (no
