@@ -1,5 +1,6 @@
 //! `wipdr` — the command-line program of the wipdr workspace: inspect recorded walks,
-//! simulate synthetic ones, plot floors, benchmark matchers, evaluate and sweep fusion schemes.
+//! simulate synthetic ones, plot floors, benchmark matchers, evaluate and sweep fusion schemes,
+//! score estimates as the IPIN competition does.
 //!
 //! Each subcommand lives in its own module under `cmd/` with an `Args` struct and a `run`
 //! function. Only this program prints and installs a `tracing` subscriber; the libraries log.
@@ -57,6 +58,9 @@ enum Command {
     Eval(cmd::eval::Args),
     /// The report page of a saved run: `wipdr report RESULTS.json --out FILE.html`.
     Report(cmd::report::Args),
+    /// The IPIN competition's official scoring of EvAAL API estimates files against a
+    /// trial's ground truth: `wipdr score --truth GT.csv EST_FILE...`.
+    Score(cmd::score::Args),
     /// Learn a site once (radio map, calibration, references) and save it as a model file.
     Fit(cmd::fit::Args),
     /// Write a recorded walk as a plain sample stream (CSV), the format `locate` reads.
@@ -104,6 +108,7 @@ fn main() -> std::process::ExitCode {
         Command::PdrEval(a) => cmd::pdr_eval::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Report(a) => cmd::report::run(a),
+        Command::Score(a) => cmd::score::run(a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::ExportStream(a) => cmd::export_stream::run(a),
         Command::Locate(a) => cmd::locate::run(a),

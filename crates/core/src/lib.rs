@@ -5,7 +5,8 @@
 //! ([`wifi`]), surveyed waypoints, whole recorded [`Walk`]s with time-sorted streams and a
 //! merged time-ordered replay, floor plans with walls ([`floor`]), and the two seams of the
 //! system: PDR [`StepEvent`]s and Wi-Fi [`WifiObservation`]s (papers 000 §2-3, 001 §2-3,
-//! 002 §3-4, 004 §4: the inputs every fusion scheme consumes).
+//! 002 §3-4, 004 §4: the inputs every fusion scheme consumes), and the IPIN competition's
+//! scoring records ([`evaal`]).
 //!
 //! ## Conventions
 //!
@@ -23,6 +24,7 @@
 
 pub mod angle;
 pub mod error;
+pub mod evaal;
 pub mod fingerprint_table;
 pub mod fit;
 pub mod floor;
@@ -38,6 +40,7 @@ pub mod walk;
 pub mod wifi;
 
 pub use error::CoreError;
+pub use evaal::{EvaalEstimate, EvaalTruthPoint};
 pub use fingerprint_table::{FingerprintLabel, FingerprintTable};
 pub use floor::{FloorPlan, Polygon, Segment, Unit};
 pub use geo::GeoFrame;

@@ -10,7 +10,10 @@
 //! where every walk has a route (IPIN logfiles, `TrialNN`), folds are leave-one-route-out;
 //! where waypoints carry floors, each scored point has a floor error and the reports give the
 //! floor hit rate and the EvAAL metric (75th percentile of 2D error + 15 m per floor of error;
-//! [`scoring::evaal_errors`]).
+//! [`scoring::evaal_errors`], [`evaal_score::evaal_metric`]).
+//!
+//! [`evaal_score`] reproduces the competition's official scorer on its own files (ground
+//! truth and the EvAAL API's estimates log): `wipdr score`.
 //!
 //! Every run goes through `wipdr-positioning`'s pipeline: a test walk's raw samples are
 //! streamed through the [`Positioner`](wipdr_positioning::Positioner)'s front end (PDR +
@@ -35,6 +38,7 @@
 pub mod config;
 pub mod coverage;
 pub mod drawing;
+pub mod evaal_score;
 pub mod fingerprint_benchmark;
 pub mod fold;
 pub mod folds;

@@ -40,7 +40,9 @@
 //! `floor_error` is the estimated minus the true floor (0 where the walk has no floors;
 //! `null` before the stream's first floor estimate); `floor_hit_rate` is over the scored
 //! points with a true floor (`null` without any); `evaal` is the IPIN competition's metric,
-//! the 75th percentile of 2D error + 15 m x |floor error| ([`crate::scoring::evaal_errors`]).
+//! the 75th percentile of 2D error + 15 m x |floor error| ([`crate::scoring::evaal_errors`]),
+//! by the competition's quantile rule (MATLAB's, [`crate::evaal_score::evaal_metric`]; the
+//! `p50`..`p95` figures use numpy's default rule).
 //!
 //! ```text
 //! ```
@@ -74,7 +76,8 @@ pub struct Summary {
     /// without such points.
     #[serde(default)]
     pub floor_hit_rate: Option<f64>,
-    /// EvAAL metric: 75th percentile of 2D error + 15 m x |floor error|, metres; `None`
+    /// EvAAL metric: 75th percentile (the competition's rule,
+    /// [`crate::evaal_score::evaal_metric`]) of 2D error + 15 m x |floor error|, metres; `None`
     /// without scored points or without floors.
     #[serde(default)]
     pub evaal: Option<f64>,
@@ -114,7 +117,7 @@ impl Summary {
             p95: st.p95,
             max: st.max,
             floor_hit_rate: (floor_scored > 0).then(|| floor_hits as f64 / floor_scored as f64),
-            evaal: (!evaal.is_empty()).then(|| ErrorStats::from_errors(&evaal).p75),
+            evaal: crate::evaal_score::evaal_metric(&evaal),
             radius_95_coverage: (with_sd > 0).then(|| inside as f64 / with_sd as f64),
         }
     }

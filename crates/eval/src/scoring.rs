@@ -125,7 +125,12 @@ impl WalkScore {
 pub fn evaal_errors(points: &[ScoredPoint]) -> Vec<f64> {
     points
         .iter()
-        .map(|&(_, e, f)| e + FLOOR_PENALTY_M * f.map_or(1.0, |f| f64::from(f.unsigned_abs())))
+        .map(|&(_, e, f)| {
+            crate::evaal_score::evaal_sample_error(
+                e,
+                f.map_or(1.0, |f| f64::from(f.unsigned_abs())),
+            )
+        })
         .collect()
 }
 

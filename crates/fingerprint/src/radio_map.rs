@@ -254,6 +254,23 @@ impl TableBudget {
     }
 }
 
+/// One cell of a radio map's table that differs from "never heard" (mean at the "not heard"
+/// value, count 0, spread 0): the sparse form a saved site model stores
+/// ([`RadioMap::sparse_cells`], [`RadioMap::from_sparse`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SparseCell {
+    /// Row (reference point).
+    pub point: u32,
+    /// Column (AP).
+    pub ap: u32,
+    /// Mean RSS, dBm.
+    pub mean_dbm: f32,
+    /// Scans that heard it.
+    pub count: u16,
+    /// Spread of the RSS, dB.
+    pub spread_db: f32,
+}
+
 impl PartialEq for RadioMap {
     /// The map's value: vocabulary, points, config and table; the budget does not count.
     fn eq(&self, other: &Self) -> bool {
@@ -398,6 +415,91 @@ impl RadioMap {
         }
         self.points.push(point);
         Ok(())
+    }
+
+    /// The cells of the table that differ from "never heard", row by row: with the
+    /// vocabulary, the points and the config, the whole map ([`RadioMap::from_sparse`]).
+    /// Most of a building's table is never heard, so this is a fraction of its size.
+    pub fn sparse_cells(&self) -> Vec<SparseCell> {
+        let m = self.n_aps();
+        let nh = self.config.not_heard_dbm;
+        let mut out = Vec::new();
+        for (k, ((&mean, &count), &spread)) in self
+            .mean_dbm
+            .iter()
+            .zip(&self.counts)
+            .zip(&self.spread_db)
+            .enumerate()
+        {
+            if count != 0 || mean.to_bits() != nh.to_bits() || spread.to_bits() != 0 {
+                // k < points x APs, each of which fits in u32 (a map saved this way is far
+                // below 2^32 rows and columns); checked, never truncated.
+                let (Ok(point), Ok(ap)) =
+                    (u32::try_from(k / m.max(1)), u32::try_from(k % m.max(1)))
+                else {
+                    continue;
+                };
+                out.push(SparseCell {
+                    point,
+                    ap,
+                    mean_dbm: mean,
+                    count,
+                    spread_db: spread,
+                });
+            }
+        }
+        out
+    }
+
+    /// A map from its sparse form ([`RadioMap::sparse_cells`]): the dense table filled with
+    /// "never heard", then the cells written. `max_cells` bounds `points x APs` before the
+    /// table is allocated (a decoded file could announce any shape); a cell outside the
+    /// table, given twice or out of row order is an error.
+    pub fn from_sparse(
+        vocabulary: ApVocabulary,
+        points: Vec<ReferencePoint>,
+        config: RadioMapConfig,
+        cells: &[SparseCell],
+        max_cells: usize,
+    ) -> Result<Self, FingerprintError> {
+        let bad = |what: String| FingerprintError::InvalidInput(format!("radio map: {what}"));
+        let m = vocabulary.len();
+        let n = points.len();
+        let total = n
+            .checked_mul(m)
+            .filter(|&c| c <= max_cells)
+            .ok_or_else(|| {
+                bad(format!(
+                    "{n} points x {m} APs is more than the {max_cells} cells a map may have"
+                ))
+            })?;
+        let mut map = Self {
+            vocabulary,
+            points,
+            config,
+            mean_dbm: vec![config.not_heard_dbm; total],
+            counts: vec![0; total],
+            spread_db: vec![0.0; total],
+            budget: None,
+        };
+        let mut last: Option<usize> = None;
+        for c in cells {
+            let (i, j) = (c.point as usize, c.ap as usize);
+            if i >= n || j >= m {
+                return Err(bad(format!(
+                    "cell ({i}, {j}) outside the table of {n} points x {m} APs"
+                )));
+            }
+            let k = i * m + j;
+            if last.is_some_and(|l| k <= l) {
+                return Err(bad(format!("cell ({i}, {j}) given twice or out of order")));
+            }
+            last = Some(k);
+            map.mean_dbm[k] = c.mean_dbm;
+            map.counts[k] = c.count;
+            map.spread_db[k] = c.spread_db;
+        }
+        Ok(map)
     }
 
     /// Checks that a map decoded from outside (a saved site model) is one this crate could

@@ -33,6 +33,8 @@
 //! - [`geojson`]: the floor plan in lon/lat degrees, mapped into metres by sending the
 //!   bounding box of the first feature (the outline) onto `[0, width] x [0, height]`
 //!   (longitude to `x`, latitude to `y`); units keep their `name`.
+//! - [`evaal`]: the IPIN competition's scoring files, a trial's ground truth (`GT_*.csv`) and
+//!   the EvAAL API's estimates log (`*.est`), strict, errors naming file, line and field.
 //! - [`fingerprint_csv`]: the fingerprint benchmark CSVs (`100` = not detected).
 //! - [`cache`]: a bincode cache of parsed floors, keyed by each source file's size and
 //!   modification time (default folder [`cache::DEFAULT_CACHE_DIR`]).
@@ -73,6 +75,7 @@
 pub mod any;
 pub mod cache;
 pub mod error;
+pub mod evaal;
 pub mod fingerprint_csv;
 pub mod floor;
 pub mod geojson;

@@ -13,6 +13,7 @@ pub mod pdr_eval;
 pub mod pdr_fit;
 pub mod plot;
 pub mod report;
+pub mod score;
 pub mod simulate;
 pub mod sweep;
 pub mod wifi_stats;

@@ -44,3 +44,14 @@ pub fn real_data() -> Option<(PathBuf, PathBuf)> {
         .join(wipdr_io::cache::DEFAULT_CACHE_DIR);
     Some((root, cache))
 }
+
+/// A folder under `../shared/data` (e.g. `ipin2023/scoring`), or `None` (the reason printed)
+/// without it.
+pub fn shared_data_dir(sub: &str) -> Option<PathBuf> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(sub);
+    if !dir.is_dir() {
+        println!("skipped: {} not found", dir.display());
+        return None;
+    }
+    Some(dir)
+}

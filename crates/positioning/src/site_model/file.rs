@@ -5,7 +5,9 @@
 //! - a fixed header of [`HEADER_BYTES`]: the magic [`MAGIC`], the format version (`u32`), the
 //!   payload's length (`u64`) and CRC-32, and the header's own CRC-32 (little-endian);
 //! - the payload: bincode 2 of the model's data, its settings (the positioner config and the
-//!   scheme table, whose tagged enums bincode cannot carry) as one JSON text inside.
+//!   scheme table, whose tagged enums bincode cannot carry) as one JSON text inside, the
+//!   radio map's table in sparse form (only the cells some scan heard:
+//!   [`wipdr_fingerprint::radio_map::SparseCell`]).
 //!
 //! ## Bad files
 //!
@@ -14,7 +16,8 @@
 //! length, which must equal the file's size less the header; the payload's CRC is checked
 //! before it is decoded; bincode decodes with a size limit (and serde never preallocates more
 //! than a megabyte on a length it reads), so a header or payload announcing 10^12 entries
-//! fails without allocating them; the decoded model is checked
+//! fails without allocating them; the radio map's dense table is allocated only after its
+//! shape is checked against [`MAX_MAP_CELLS`]; the decoded model is checked
 //! ([`wipdr_fingerprint::RadioMap::check_consistent`], the config's validation) before use.
 //! Every failure is a [`SiteModelFileError`] naming the file and what differs.
 
@@ -23,6 +26,7 @@ use serde::{Deserialize, Serialize};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
+use wipdr_fingerprint::radio_map::SparseCell;
 
 /// The file's first eight bytes.
 pub const MAGIC: &[u8; 8] = b"WIPDRSM\0";
@@ -33,6 +37,10 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const HEADER_BYTES: usize = 8 + 4 + 8 + 4 + 4;
 /// Largest model file read: 2 GiB (the five ILC floors as one model take a few tens of MB).
 pub const MAX_MODEL_BYTES: u64 = 2 * 1024 * 1024 * 1024;
+/// Most cells (`reference points x APs`) of a saved radio map's dense table: 400 million
+/// (4 GiB in memory; the two ILC sites as buildings have 39 and 35 million), checked before
+/// the table is allocated.
+pub const MAX_MAP_CELLS: usize = 400_000_000;
 /// Most bytes bincode may claim while decoding a payload.
 const DECODE_LIMIT: usize = 1 << 32;
 
@@ -130,7 +138,10 @@ pub enum SiteModelFileError {
 struct Payload {
     settings_json: String,
     name: String,
-    radio_map: wipdr_fingerprint::RadioMap,
+    vocabulary: wipdr_fingerprint::ApVocabulary,
+    points: Vec<wipdr_fingerprint::ReferencePoint>,
+    radio: wipdr_fingerprint::RadioMapConfig,
+    cells: Vec<SparseCell>,
     measured: Vec<super::MeasuredPoint>,
     coverage_includes_extension: bool,
     trail_segments: Vec<wipdr_core::Segment>,
@@ -191,7 +202,10 @@ impl SiteModel {
         let payload = Payload {
             settings_json,
             name: d.name.clone(),
-            radio_map: d.radio_map.clone(),
+            vocabulary: d.radio_map.vocabulary().clone(),
+            points: d.radio_map.points().to_vec(),
+            radio: d.radio_map.config(),
+            cells: d.radio_map.sparse_cells(),
             measured: d.measured.clone(),
             coverage_includes_extension: d.coverage_includes_extension,
             trail_segments: d.trail_segments.clone(),
@@ -285,11 +299,19 @@ impl SiteModel {
         };
         let settings: Settings = serde_json::from_str(&payload.settings_json)
             .map_err(|e| invalid(format!("settings: {e}")))?;
+        let radio_map = wipdr_fingerprint::RadioMap::from_sparse(
+            payload.vocabulary,
+            payload.points,
+            payload.radio,
+            &payload.cells,
+            MAX_MAP_CELLS,
+        )
+        .map_err(|e| invalid(e.to_string()))?;
         let data = SiteModelData {
             name: payload.name,
             config: settings.config,
             schemes: settings.schemes,
-            radio_map: payload.radio_map,
+            radio_map,
             measured: payload.measured,
             coverage_includes_extension: payload.coverage_includes_extension,
             trail_segments: payload.trail_segments,

@@ -53,7 +53,9 @@ mod pressure;
 mod provenance;
 
 pub use coverage::{MeasuredPoint, coverage_distance, measured_points};
-pub use file::{FORMAT_VERSION, HEADER_BYTES, MAGIC, MAX_MODEL_BYTES, SiteModelFileError};
+pub use file::{
+    FORMAT_VERSION, HEADER_BYTES, MAGIC, MAX_MAP_CELLS, MAX_MODEL_BYTES, SiteModelFileError,
+};
 pub use fit::{SiteConfig, SiteFitConfig, TrainingData, calibrate_pdr};
 pub use pressure::{REFERENCE_MAX_RANGE_HPA, REFERENCE_STRETCH_MS, pressure_references};
 pub use provenance::{Provenance, SourceFile};
