@@ -47,7 +47,13 @@ proptest! {
 #[test]
 fn crafted_sparse_maps_are_refused() {
     let map = map_of(&[vec![(0, -50), (1, -60)], vec![(1, -70)]]);
-    let parts = || (map.vocabulary().clone(), map.points().to_vec(), map.config());
+    let parts = || {
+        (
+            map.vocabulary().clone(),
+            map.points().to_vec(),
+            map.config(),
+        )
+    };
     let cell = |point, ap| SparseCell {
         point,
         ap,

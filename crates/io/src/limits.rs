@@ -80,6 +80,96 @@ pub struct Limits {
     pub report_max_unknown_types: usize,
 }
 
+impl Limits {
+    /// The hard ceiling of each limit a user can raise (`wipdr inspect --limits FILE.toml`),
+    /// with the memory it implies: a limit is a promise that the reader stays within it, so
+    /// one raised past what a 24 GiB machine can hold is refused rather than tried.
+    pub const CEILINGS: [(&'static str, u64, &'static str); 15] = [
+        ("max_line_bytes", 64 << 20, "a line is held whole: 64 MiB"),
+        (
+            "max_input_bytes",
+            64 << 30,
+            "streamed; the walk's memory is bounded separately",
+        ),
+        (
+            "max_records",
+            1_000_000_000,
+            "each kept record is counted in max_walk_memory_bytes",
+        ),
+        (
+            "max_scan_entries",
+            1_000_000,
+            "a scan is held whole: about 100 MB",
+        ),
+        (
+            "max_json_bytes",
+            4 << 30,
+            "a JSON file is held whole, parsed: about 8x",
+        ),
+        (
+            "max_geojson_features",
+            10_000_000,
+            "about 1 KiB each parsed",
+        ),
+        ("max_geojson_vertices", 100_000_000, "16 bytes each, 1.6 GB"),
+        ("max_walk_memory_bytes", 16 << 30, "the parsed walk itself"),
+        (
+            "max_json_values",
+            1_000_000_000,
+            "about 50 bytes each parsed",
+        ),
+        (
+            "max_csv_bytes",
+            16 << 30,
+            "streamed; the table is bounded by max_csv_cells",
+        ),
+        ("max_csv_line_bytes", 256 << 20, "a line is held whole"),
+        ("max_csv_columns", 1_000_000, "a header of names"),
+        ("max_csv_cells", 2_000_000_000, "4 bytes each, 8 GB"),
+        (
+            "report_first_lines",
+            10_000,
+            "line numbers kept per skip kind",
+        ),
+        (
+            "report_max_unknown_types",
+            100_000,
+            "names kept in the report",
+        ),
+    ];
+
+    /// Checks every limit against its ceiling ([`Limits::CEILINGS`]); the error names the
+    /// field, the value and the ceiling with the memory it stands for.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let values: [u64; 15] = [
+            self.max_line_bytes as u64,
+            self.max_input_bytes,
+            self.max_records as u64,
+            self.max_scan_entries as u64,
+            self.max_json_bytes,
+            self.max_geojson_features as u64,
+            self.max_geojson_vertices as u64,
+            self.max_walk_memory_bytes,
+            self.max_json_values,
+            self.max_csv_bytes,
+            self.max_csv_line_bytes as u64,
+            self.max_csv_columns as u64,
+            self.max_csv_cells,
+            self.report_first_lines as u64,
+            self.report_max_unknown_types as u64,
+        ];
+        for ((field, ceiling, why), value) in Self::CEILINGS.iter().zip(values) {
+            if value > *ceiling {
+                return Err((
+                    (*field).to_string(),
+                    format!("{value} is above the ceiling {ceiling} ({why})"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Default for Limits {
     fn default() -> Self {
         Self {
@@ -99,5 +189,27 @@ impl Default for Limits {
             report_first_lines: 5,
             report_max_unknown_types: 64,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_are_within_the_ceilings_and_a_raised_limit_is_checked() {
+        assert_eq!(Limits::default().validate(), Ok(()));
+        let raised = Limits {
+            max_scan_entries: 10_000_000,
+            ..Limits::default()
+        };
+        let (field, message) = raised.validate().unwrap_err();
+        assert_eq!(field, "max_scan_entries");
+        assert!(message.contains("above the ceiling 1000000"), "{message}");
+        let cells = Limits {
+            max_csv_cells: u64::MAX,
+            ..Limits::default()
+        };
+        assert_eq!(cells.validate().unwrap_err().0, "max_csv_cells");
     }
 }

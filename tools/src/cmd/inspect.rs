@@ -33,6 +33,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         options.limits =
             toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        if let Err((field, reason)) = options.limits.validate() {
+            anyhow::bail!("{}: {field}: {reason}", path.display());
+        }
     }
     let started = Instant::now();
     for path in &args.paths {
