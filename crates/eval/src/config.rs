@@ -5,7 +5,6 @@
 use crate::pipeline::EvalError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use wipdr_fingerprint::interpolate::{AlongWalkConfig, InterpolationConfig, Kernel, SpatialConfig};
 use wipdr_fingerprint::propagation::PropagationConfig;
 use wipdr_fingerprint::walk_map::WalkMapConfig;
 use wipdr_fingerprint::{MatcherConfig, QueryFilter};
@@ -83,20 +82,11 @@ impl Default for EvalConfig {
     /// `preset = "paper"` in a config file merges onto them instead.
     fn default() -> Self {
         let positioner = PositionerConfig::default();
-        let radio_map = WalkMapConfig {
-            interpolation: Some(InterpolationConfig {
-                along_walk: Some(AlongWalkConfig::default()),
-                spatial: Some(SpatialConfig {
-                    cell_m: 3.0,
-                    radius_m: 6.0,
-                    kernel: Kernel::Gaussian { sigma_m: 3.0 },
-                    ..SpatialConfig::default()
-                }),
-            }),
-            ..WalkMapConfig::default()
-        };
+        // How a site is learned: the one default of `SiteFitConfig` (the interpolated map,
+        // the path-loss extension).
+        let fit = SiteFitConfig::default();
         Self {
-            radio_map,
+            radio_map: fit.radio_map,
             matcher: positioner.matcher,
             map_matching: positioner.map_matching,
             // the handling gate on (the papers' preset has none), heading snapping on (its
@@ -111,10 +101,7 @@ impl Default for EvalConfig {
                 },
                 ..positioner.pdr
             },
-            propagation: Some(PropagationConfig {
-                min_predicted_dbm: -85.0,
-                ..PropagationConfig::default()
-            }),
+            propagation: fit.propagation,
             // Every scheme at its shipped defaults (`SchemeConfig::default_for`), not the
             // papers' presets that `paper()` lists.
             schemes: BTreeMap::new(),
