@@ -484,3 +484,24 @@ fn degenerate_fingerprint_datasets_are_refused() {
         .unwrap();
     assert!(out.status.success(), "{out:?}");
 }
+
+#[test]
+fn limits_raised_past_their_ceiling_are_refused_naming_the_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let limits = tmp.path().join("limits.toml");
+    std::fs::write(&limits, "max_scan_entries = 100000000\n").unwrap();
+    let walk = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../fixtures/sim/F1/path_data_files/sim_F1_w0000.txt.gz"
+    ));
+    let err = refused([
+        "inspect".as_ref(),
+        "--limits".as_ref(),
+        limits.as_os_str(),
+        walk.as_os_str(),
+    ]);
+    assert!(
+        err.contains("limits.toml: max_scan_entries: 100000000 is above the ceiling 1000000"),
+        "{err}"
+    );
+}
