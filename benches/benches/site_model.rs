@@ -34,7 +34,11 @@ fn places() -> Vec<(String, PathBuf)> {
 fn fit(dir: &Path) -> SiteModel {
     let (data, _) = wipdr_io::any::read_any_dir(
         dir,
-        &wipdr_io::cache::CacheSettings::default(),
+        // The workspace's parse cache (cargo runs benches in the package folder).
+        &wipdr_io::cache::CacheSettings::in_dir(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../target/wipdr-cache"
+        )),
         &Default::default(),
         &|| {},
     )

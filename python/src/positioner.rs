@@ -219,12 +219,12 @@ impl PySiteModel {
             name: "records".into(),
             config: positioner,
             schemes: site.schemes,
-            measured: measured_points(&map),
+            measured: Arc::new(measured_points(&map)),
             provenance: Provenance::of(&TrainingData::default(), &map),
-            radio_map: map,
+            radio_map: Arc::new(map),
             coverage_includes_extension: false,
             trail_segments: Vec::new(),
-            pressure_references: Vec::new(),
+            pressure_references: Arc::new(Vec::new()),
             plan: Some(plan),
             geo_frame: None,
             floors,
@@ -428,7 +428,7 @@ impl PyPositioner {
                     site_model.matcher().clone()
                 } else {
                     pcfg.matcher
-                        .build(Arc::new(site_model.radio_map().clone()))
+                        .build(site_model.data().radio_map.clone())
                         .map_err(|e| input_error(format!("Positioner: matcher: {e}")))?
                 };
                 (pcfg, matcher)

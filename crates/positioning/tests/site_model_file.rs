@@ -169,9 +169,9 @@ fn a_consistent_looking_payload_with_wrong_shapes_is_invalid() {
     // Re-encode the model's data with the radio map's arrays cut short: the CRCs are right,
     // bincode decodes it, the shape check refuses it.
     let mut data = model().data().clone();
-    let mut map = serde_json::to_value(&data.radio_map).unwrap();
+    let mut map = serde_json::to_value(&*data.radio_map).unwrap();
     map["mean_dbm"].as_array_mut().unwrap().pop();
-    data.radio_map = serde_json::from_value(map).unwrap();
+    data.radio_map = std::sync::Arc::new(serde_json::from_value(map).unwrap());
     match SiteModel::from_data(data, None) {
         Err(e) => assert!(e.to_string().contains("radio map"), "{e}"),
         Ok(_) => panic!("a radio map with a missing value was accepted"),

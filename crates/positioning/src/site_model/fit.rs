@@ -9,6 +9,7 @@ use crate::PositionerConfig;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use wipdr_core::{FingerprintTable, FloorPlan, GeoFrame, Segment, Walk};
 use wipdr_fingerprint::RadioMap;
 use wipdr_fingerprint::interpolate::{AlongWalkConfig, InterpolationConfig, Kernel, SpatialConfig};
@@ -251,10 +252,10 @@ impl SiteModel {
             config: positioner,
             schemes: config.schemes.clone(),
             coverage_includes_extension: learned.extended && config.fit.propagation_is_coverage,
-            radio_map: learned.map,
-            measured: learned.measured,
+            radio_map: Arc::new(learned.map),
+            measured: Arc::new(learned.measured),
             trail_segments,
-            pressure_references: pressure_references(data.walks),
+            pressure_references: Arc::new(pressure_references(data.walks)),
             plan: data.plan.cloned(),
             geo_frame: data.geo_frame,
             floors,

@@ -64,7 +64,6 @@ use crate::{
     Positioner, PositionerConfig, PositioningError, PressureReference, Site, StreamIdentity,
     stream_seed,
 };
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use thiserror::Error;
@@ -107,8 +106,9 @@ pub enum SiteModelError {
 }
 
 /// What a site model saves: the learned data and its settings. [`SiteModel`] adds what is
-/// derived from it on load.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// derived from it on load. The large parts are shared (`Arc`) with the matcher and the
+/// streams, never copied.
+#[derive(Debug, Clone, PartialEq)]
 pub struct SiteModelData {
     /// The site's display name.
     pub name: String,
@@ -118,16 +118,16 @@ pub struct SiteModelData {
     /// Scheme settings by name; a scheme not listed runs with its defaults.
     pub schemes: BTreeMap<String, SchemeConfig>,
     /// The radio map (after interpolation and path-loss extension).
-    pub radio_map: RadioMap,
+    pub radio_map: Arc<RadioMap>,
     /// The measured reference points (before any path-loss extension).
-    pub measured: Vec<MeasuredPoint>,
+    pub measured: Arc<Vec<MeasuredPoint>>,
     /// Whether the extension's synthesised points count as coverage for coverage-aware
     /// schemes (`pmf`).
     pub coverage_includes_extension: bool,
     /// Where the training walks went: the segments between their consecutive waypoints.
     pub trail_segments: Vec<Segment>,
     /// The training walks' barometer on known floors.
-    pub pressure_references: Vec<PressureReference>,
+    pub pressure_references: Arc<Vec<PressureReference>>,
     /// The floor plan, where the data has one.
     pub plan: Option<FloorPlan>,
     /// The WGS84 frame of the metre coordinates, where known.
@@ -145,8 +145,6 @@ pub struct SiteModel {
     data: SiteModelData,
     matcher: MatcherModel,
     site: Site,
-    pressure_references: Arc<Vec<PressureReference>>,
-    measured: Arc<Vec<MeasuredPoint>>,
 }
 
 /// What a stream tells its [`Positioner`] when it is built from a [`SiteModel`].
@@ -176,7 +174,7 @@ impl SiteModel {
                     reason: e.to_string(),
                 })?;
         }
-        let map = Arc::new(data.radio_map.clone());
+        let map = data.radio_map.clone();
         let matcher = data.config.matcher.build(map.clone())?;
         let mut site = plan_site.unwrap_or_else(|| Site::from_plan(data.plan.as_ref()));
         site.coverage = Some(Arc::new(if data.coverage_includes_extension {
@@ -198,8 +196,6 @@ impl SiteModel {
         Ok(Self {
             matcher,
             site,
-            pressure_references: Arc::new(data.pressure_references.clone()),
-            measured: Arc::new(data.measured.clone()),
             data,
         })
     }
@@ -243,12 +239,12 @@ impl SiteModel {
 
     /// The measured reference points.
     pub fn measured(&self) -> &Arc<Vec<MeasuredPoint>> {
-        &self.measured
+        &self.data.measured
     }
 
     /// The barometric references.
     pub fn pressure_references(&self) -> &Arc<Vec<PressureReference>> {
-        &self.pressure_references
+        &self.data.pressure_references
     }
 
     /// Where the training walks went (`None` when they had fewer than two waypoints each).
@@ -299,7 +295,7 @@ impl SiteModel {
         let mut positioner =
             Positioner::from_parts(&self.matcher, &self.site, &config, stream.start)?;
         if let Some(id) = &stream.identity {
-            positioner.set_pressure_references(self.pressure_references.clone(), id.clone());
+            positioner.set_pressure_references(self.data.pressure_references.clone(), id.clone());
         }
         Ok(positioner)
     }
