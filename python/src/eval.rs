@@ -165,6 +165,7 @@ pub fn locate<'py>(
         label: name,
         data: Arc::new(floor),
         dir: None,
+        input_skips: Default::default(),
     };
     let index = input
         .data

@@ -253,6 +253,7 @@ impl PyFloor {
             label: self.inner.name.clone(),
             data: self.inner.clone(),
             dir: None,
+            input_skips: Default::default(),
         }
     }
 }

@@ -171,7 +171,10 @@ pub fn load_floors(dirs: &[PathBuf]) -> Result<Vec<FloorInput>> {
         .iter()
         .map(|dir| {
             let data = load_floor_data(dir)?;
-            Ok(FloorInput::new(floor_label(dir), data.into_floor()).with_dir(dir))
+            let skips = data.skip_counts();
+            Ok(FloorInput::new(floor_label(dir), data.into_floor())
+                .with_dir(dir)
+                .with_input_skips(skips))
         })
         .collect()
 }

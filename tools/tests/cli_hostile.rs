@@ -505,3 +505,89 @@ fn limits_raised_past_their_ceiling_are_refused_naming_the_field() {
         "{err}"
     );
 }
+
+/// Seen on the old main: a walk whose accelerometer samples were all rejected (out of
+/// physical range) was still scored for `pdr` and the fused schemes, PDR standing still with
+/// plausible-looking errors; and `eval` said nothing of the records its readers skipped.
+/// Now the walk is left out of every scheme that needs steps (counted in the table's
+/// `walks-` column and the JSON's `skipped_runs`), still scored for `wifi`, and every skip
+/// is listed per floor and kind.
+#[test]
+fn a_walk_without_usable_accelerometer_is_skipped_per_scheme_and_every_skip_reported() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulated_floor(tmp.path(), 5);
+    let files = floor::walk_files(&dir).unwrap();
+    let mut deaf = wipdr_io::trace::read_walk(&files[0]).unwrap().walk;
+    let rejected = deaf.imu.accelerometer.len();
+    assert!(
+        rejected > 100,
+        "the simulated walk has an accelerometer stream"
+    );
+    for s in &mut deaf.imu.accelerometer {
+        s.v = [1e300, 0.0, 9.8];
+    }
+    wipdr_io::trace::write_walk_file(&deaf, &files[0]).unwrap();
+    // Another walk with one waypoint far off any floor: skipped as out of range.
+    let mut off = wipdr_io::trace::read_walk(&files[1]).unwrap().walk;
+    off.waypoints[1].position.x = 5e6;
+    wipdr_io::trace::write_walk_file(&off, &files[1]).unwrap();
+
+    let json = tmp.path().join("e.json");
+    let out = wipdr()
+        .args(["--no-cache", "eval", "--schemes", "wifi,pdr,ekf", "--json"])
+        .arg(&json)
+        .arg("--data")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let id = deaf.meta.id.as_str();
+    let runs: Vec<(&str, &str, &str)> = v["skipped_runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            (
+                r["walk"].as_str().unwrap(),
+                r["scheme"].as_str().unwrap(),
+                r["missing"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        runs,
+        vec![(id, "pdr", "accelerometer"), (id, "ekf", "accelerometer")]
+    );
+    let scored: Vec<&str> = v["walks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|w| w["walk"] == id)
+        .map(|w| w["scheme"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        scored,
+        vec!["wifi"],
+        "the walk is still scored for Wi-Fi only"
+    );
+    for (scheme, n) in [("wifi", 0), ("pdr", 1), ("ekf", 1)] {
+        assert_eq!(v["pooled"][scheme]["walks_skipped"], n, "{scheme}");
+    }
+    let label = v["floors"].as_object().unwrap().keys().next().unwrap();
+    let skips = &v["skips"][label.as_str()];
+    assert_eq!(
+        skips["record: out of physical range"].as_u64(),
+        Some(rejected as u64 + 1),
+        "{skips}"
+    );
+    assert_eq!(skips["run: pdr: no accelerometer stream (under 10 Hz)"], 1);
+    assert!(stdout.contains("walks-"), "{stdout}");
+    assert!(stdout.contains("skipped (per floor and kind):"), "{stdout}");
+    assert!(
+        stdout.contains(&format!("record: out of physical range: {}", rejected + 1)),
+        "{stdout}"
+    );
+}

@@ -173,6 +173,7 @@ impl FoldModel {
             off_floor_fixes: usize::try_from(counts.off_floor_fixes).unwrap_or(usize::MAX),
             coverage: self.model.coverage(),
             trails: self.model.trails().cloned(),
+            missing_streams: crate::streams::missing_streams(walk),
         }
     }
 }

@@ -47,5 +47,6 @@ pub mod pipeline;
 pub mod report;
 pub mod scoring;
 pub mod shard;
+pub mod streams;
 pub mod sweep;
 pub mod wifi_stats;

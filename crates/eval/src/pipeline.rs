@@ -13,7 +13,7 @@
 use crate::coverage::attach_coverage;
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
-use crate::report::{EvalReport, WalkResult};
+use crate::report::{EvalReport, SkippedRun, WalkResult};
 use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -125,6 +125,9 @@ pub struct FloorInput {
     pub data: Arc<Floor>,
     /// The folder it was read from, where it was (plots look for the floor image there).
     pub dir: Option<std::path::PathBuf>,
+    /// What the readers skipped in it, by kind (records out of range, unreadable walk
+    /// files, unusable plan features, ...), for the report's skip counts.
+    pub input_skips: crate::report::InputSkips,
 }
 
 impl FloorInput {
@@ -134,7 +137,14 @@ impl FloorInput {
             label: label.into(),
             data: Arc::new(floor),
             dir: None,
+            input_skips: crate::report::InputSkips::new(),
         }
+    }
+
+    /// The floor with what its readers skipped, by kind.
+    pub fn with_input_skips(mut self, skips: crate::report::InputSkips) -> Self {
+        self.input_skips = skips;
+        self
     }
 
     /// The floor with the folder it was read from.
@@ -181,6 +191,9 @@ pub struct PreparedWalk {
     /// shared by the fold's walks; `pmf`'s trail prior uses it. `None` when the training
     /// walks have fewer than two waypoints each.
     pub trails: Option<Arc<TrailRaster>>,
+    /// The input streams the walk lacks ([`crate::streams::missing_streams`]): a scheme
+    /// that needs one of them is not run on it but counted as a skipped run.
+    pub missing_streams: Vec<crate::streams::MissingStream>,
 }
 
 pub use wipdr_positioning::site_model::{TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
@@ -527,9 +540,27 @@ pub fn run_prepared_observed(
         .map(|s| cfg.scheme(s))
         .collect::<Result<_, _>>()?;
     let envs: Vec<FloorEnv> = floors.par_iter().map(FloorEnv::new).collect();
-    let jobs: Vec<(usize, usize)> = (0..prepared.len())
-        .flat_map(|w| (0..configs.len()).map(move |s| (w, s)))
-        .collect();
+    // A walk lacking a stream a scheme needs is not run for it, but counted.
+    let mut skipped_runs = Vec::new();
+    let mut jobs: Vec<(usize, usize)> = Vec::with_capacity(prepared.len() * configs.len());
+    for (w, pw) in prepared.iter().enumerate() {
+        for (s, scheme) in configs.iter().enumerate() {
+            match crate::streams::blocking_stream(scheme, &pw.missing_streams) {
+                None => jobs.push((w, s)),
+                Some(missing) => {
+                    tracing::warn!(floor = %pw.floor, walk = %pw.walk, scheme = %schemes[s], missing = missing.label(), "walk not run for the scheme");
+                    on_done();
+                    skipped_runs.push(SkippedRun {
+                        floor: pw.floor.clone(),
+                        walk: pw.walk.clone(),
+                        fold: pw.fold,
+                        scheme: schemes[s].clone(),
+                        missing,
+                    });
+                }
+            }
+        }
+    }
     let results: Vec<Result<WalkResult, EvalError>> = jobs
         .par_iter()
         .map(|&(w, s)| {
@@ -564,11 +595,16 @@ pub fn run_prepared_observed(
         })
         .collect();
     let walks = results.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let input_skips = floors
+        .iter()
+        .map(|f| (f.label.clone(), f.input_skips.clone()))
+        .collect();
     Ok(EvalReport::from_walks(
         schemes.to_vec(),
         floors.iter().map(|f| f.label.clone()).collect(),
         walks,
-    ))
+    )
+    .with_skips(skipped_runs, input_skips))
 }
 
 /// The waypoints within `metres` of path (along the waypoints) from the first one.

@@ -9,6 +9,9 @@
 //!   "walks":  [ { "floor", "walk", "fold", "scheme", "count", "skipped", "mean", "p95",
 //!                 "max", "errors": [[t_ms, metres, floor_error], ...],
 //!                 "sd_m": [metres or null, ...] }, ... ],
+//!   "schemes": [ "<scheme>", ... ],
+//!   "skips": { "<floor>": { "<kind>": count, ... }, ... },   every skip of the run
+//!   "skipped_runs": [ { "floor", "walk", "fold", "scheme", "missing" }, ... ],
 //!   "mode": "causal" | "offline",
 //!   "config": { ...the evaluation config used... }
 //! }
@@ -30,7 +33,7 @@
 //!
 //! ```text
 //! Summary = { "count", "skipped", "mean", "rms", "p50", "p75", "p95", "max",
-//!             "floor_hit_rate", "evaal", "radius_95_coverage" }
+//!             "floor_hit_rate", "evaal", "radius_95_coverage", "walks_skipped" }
 //! ```
 //!
 //! `sd_m` (only for schemes with an uncertainty) is aligned with `errors`: the horizontal
@@ -86,6 +89,10 @@ pub struct Summary {
     /// an honest radius; `None` where the scheme reports no uncertainty.
     #[serde(default)]
     pub radius_95_coverage: Option<f64>,
+    /// Walks not run for this scheme because they lack a stream it needs
+    /// ([`SkippedRun`]); their waypoints are in neither `count` nor `skipped`.
+    #[serde(default)]
+    pub walks_skipped: usize,
 }
 
 impl Summary {
@@ -119,9 +126,31 @@ impl Summary {
             floor_hit_rate: (floor_scored > 0).then(|| floor_hits as f64 / floor_scored as f64),
             evaal: crate::evaal_score::evaal_metric(&evaal),
             radius_95_coverage: (with_sd > 0).then(|| inside as f64 / with_sd as f64),
+            walks_skipped: 0,
         }
     }
 }
+
+/// A walk a scheme was not run on, because the walk lacks a stream the scheme needs
+/// ([`crate::streams`]): counted in the tables ([`Summary::walks_skipped`]), never scored.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SkippedRun {
+    /// Floor label.
+    pub floor: String,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold of the walk.
+    pub fold: usize,
+    /// Scheme name.
+    pub scheme: String,
+    /// The stream it lacks.
+    pub missing: crate::streams::MissingStream,
+}
+
+/// What the readers left out of a floor's input, by kind (`"record: out of physical range"`,
+/// `"walk file unreadable"`, `"plan feature unusable"`, ...): counted where the data was
+/// read and carried into the report, so that `eval` shows every skip it makes.
+pub type InputSkips = BTreeMap<String, usize>;
 
 /// The score of one scheme on one test walk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -155,6 +184,12 @@ pub struct EvalReport {
     pub floor_order: Vec<String>,
     /// Every walk result.
     pub walks: Vec<WalkResult>,
+    /// The (walk, scheme) runs left out for a missing stream.
+    #[serde(default)]
+    pub skipped_runs: Vec<SkippedRun>,
+    /// Per floor label, what its readers skipped, by kind ([`InputSkips`]).
+    #[serde(default)]
+    pub input_skips: BTreeMap<String, InputSkips>,
 }
 
 impl EvalReport {
@@ -189,7 +224,67 @@ impl EvalReport {
             schemes,
             floor_order,
             walks,
+            skipped_runs: Vec::new(),
+            input_skips: BTreeMap::new(),
         }
+    }
+
+    /// The report with the runs left out for a missing stream (counted into each summary's
+    /// [`Summary::walks_skipped`]) and what the readers skipped per floor.
+    pub fn with_skips(
+        mut self,
+        skipped_runs: Vec<SkippedRun>,
+        input_skips: BTreeMap<String, InputSkips>,
+    ) -> Self {
+        for run in &skipped_runs {
+            if let Some(s) = self.pooled.get_mut(&run.scheme) {
+                s.walks_skipped += 1;
+            }
+            if let Some(s) = self
+                .floors
+                .get_mut(&run.floor)
+                .and_then(|f| f.get_mut(&run.scheme))
+            {
+                s.walks_skipped += 1;
+            }
+        }
+        self.skipped_runs = skipped_runs;
+        self.input_skips = input_skips
+            .into_iter()
+            .filter(|(_, k)| !k.is_empty())
+            .collect();
+        self
+    }
+
+    /// Every skip of the run, per floor and kind: what the readers left out
+    /// ([`Self::input_skips`]) and the runs left out for a missing stream (`"run: pdr: no
+    /// accelerometer stream"`, counting walks). Empty when nothing was skipped.
+    pub fn skips(&self) -> BTreeMap<String, BTreeMap<String, usize>> {
+        let mut out = self.input_skips.clone();
+        for run in &self.skipped_runs {
+            *out.entry(run.floor.clone())
+                .or_default()
+                .entry(format!("run: {}: {}", run.scheme, run.missing.label()))
+                .or_default() += 1;
+        }
+        out
+    }
+
+    /// The skips as text, a line per floor and kind (empty when nothing was skipped).
+    pub fn skips_table(&self) -> String {
+        use std::fmt::Write;
+        let skips = self.skips();
+        let mut out = String::new();
+        if skips.is_empty() {
+            return out;
+        }
+        let _ = writeln!(out, "skipped (per floor and kind):");
+        for (floor, kinds) in &skips {
+            for (kind, count) in kinds {
+                let _ = writeln!(out, "  {floor}  {kind}: {count}");
+            }
+        }
+        out
     }
 
     /// The JSON document `wipdr eval --json` writes (the schema in the module docs), with
@@ -216,6 +311,8 @@ impl EvalReport {
                 walk
             }).collect::<Vec<_>>(),
             "schemes": self.schemes,
+            "skips": self.skips(),
+            "skipped_runs": self.skipped_runs,
             "mode": if config.get("offline").and_then(serde_json::Value::as_bool) == Some(true) {
                 "offline"
             } else {
@@ -272,6 +369,8 @@ impl EvalReport {
             .any(|r| r.floor_hit_rate.is_some());
         // The 95 % radius coverage where some scheme reports an uncertainty.
         let radius = self.pooled.values().any(|r| r.radius_95_coverage.is_some());
+        // Walks left out for a missing stream, where some were.
+        let runs_skipped = !self.skipped_runs.is_empty();
         let mut block = |title: &str, rows: &BTreeMap<String, Summary>| {
             let _ = writeln!(out, "{title}");
             let _ = write!(
@@ -284,6 +383,9 @@ impl EvalReport {
             }
             if radius {
                 let _ = write!(out, " {:>6}", "r95%");
+            }
+            if runs_skipped {
+                let _ = write!(out, " {:>7}", "walks-");
             }
             let _ = writeln!(out);
             for s in &self.schemes {
@@ -306,6 +408,9 @@ impl EvalReport {
                             .map_or("-".to_string(), |c| format!("{:.1}", 100.0 * c));
                         let _ = write!(out, " {c:>6}");
                     }
+                    if runs_skipped {
+                        let _ = write!(out, " {:>7}", r.walks_skipped);
+                    }
                     let _ = writeln!(out);
                 }
             }
@@ -316,6 +421,12 @@ impl EvalReport {
             }
         }
         block("pooled", &self.pooled);
+        if runs_skipped {
+            let _ = writeln!(
+                out,
+                "  (walks-: walks not run for the scheme, lacking a stream it needs; see \"skipped\")"
+            );
+        }
         out
     }
 

@@ -207,6 +207,13 @@ pub struct ShardReport {
     pub ran: Vec<(usize, usize)>,
     /// Its per-walk results (every scored point), in its run's order.
     pub walks: Vec<WalkResult>,
+    /// Its runs left out for a missing stream.
+    #[serde(default)]
+    pub skipped_runs: Vec<crate::report::SkippedRun>,
+    /// What the readers skipped, per floor (the same in every shard of a run: each reads
+    /// every floor).
+    #[serde(default)]
+    pub input_skips: BTreeMap<String, crate::report::InputSkips>,
 }
 
 impl ShardReport {
@@ -217,6 +224,8 @@ impl ShardReport {
             identity,
             ran,
             walks: report.walks,
+            skipped_runs: report.skipped_runs,
+            input_skips: report.input_skips,
         }
     }
 
@@ -375,6 +384,11 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
         .collect();
     let schemes = reference.schemes.clone();
     let config = reference.config.clone();
+    let input_skips = reports[0].input_skips.clone();
+    let mut skipped_runs: Vec<crate::report::SkippedRun> = reports
+        .iter()
+        .flat_map(|r| r.skipped_runs.iter().cloned())
+        .collect();
     let mut walks: Vec<WalkResult> = reports.into_iter().flat_map(|r| r.walks).collect();
     // The unsharded order: walks by (floor, walk id) as `pipeline::prepare` sorts them
     // (ties by fold), each walk's schemes in the order asked for.
@@ -387,8 +401,18 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
             position(&schemes, &w.scheme),
         )
     });
+    // The unsharded order of the skipped runs: pipeline order (floor, walk, fold, scheme).
+    skipped_runs.sort_by_cached_key(|r| {
+        (
+            position(&labels, &r.floor),
+            r.walk.clone(),
+            r.fold,
+            position(&schemes, &r.scheme),
+        )
+    });
     Ok(Merged {
-        report: EvalReport::from_walks(schemes, labels, walks),
+        report: EvalReport::from_walks(schemes, labels, walks)
+            .with_skips(skipped_runs, input_skips),
         config,
         count,
     })

@@ -108,6 +108,44 @@ impl FloorData {
         }
     }
 
+    /// Everything the readers left out of this floor, by kind: walk files that could not
+    /// be read, plan features that are not usable polygons (degenerate, self-crossing),
+    /// records skipped by [`trace::SkipKind`] (blank lines are not counted: they hold no data),
+    /// and Wi-Fi entries whose BSSID repeated in a scan. Kinds with no skip are left out.
+    ///
+    /// ```
+    /// # use wipdr_io::floor::FloorData;
+    /// # fn f(data: &FloorData) {
+    /// for (kind, count) in data.skip_counts() {
+    ///     println!("{}: {kind}: {count}", data.name);
+    /// }
+    /// # }
+    /// ```
+    pub fn skip_counts(&self) -> std::collections::BTreeMap<String, usize> {
+        let mut out = std::collections::BTreeMap::new();
+        let mut add = |kind: String, n: usize| {
+            if n > 0 {
+                *out.entry(kind).or_insert(0) += n;
+            }
+        };
+        add("walk file unreadable".into(), self.skipped_walks.len());
+        add(
+            "plan feature unusable (degenerate or self-crossing)".into(),
+            self.skipped_features,
+        );
+        let total = self.total_report();
+        for (kind, count) in &total.skipped {
+            if *kind != trace::SkipKind::Blank {
+                add(format!("record: {}", kind.label()), count.count);
+            }
+        }
+        add(
+            "Wi-Fi entry: BSSID repeated in a scan".into(),
+            total.duplicate_bssids_removed,
+        );
+        out
+    }
+
     /// The parse reports of all walks added up (line numbers are per walk and not merged).
     pub fn total_report(&self) -> ParseReport {
         let mut total = ParseReport::default();

@@ -249,6 +249,10 @@ fn evaluate_items(
         }
     );
     print!("{}", report.table());
+    let skips = report.skips_table();
+    if !skips.is_empty() {
+        print!("\n{skips}");
+    }
     Ok((prepared, report, store))
 }
 
@@ -299,6 +303,10 @@ fn run_merge(parts: &[PathBuf], json: &Path) -> Result<()> {
         merged.report.floor_order.len()
     );
     print!("{}", merged.report.table());
+    let skips = merged.report.skips_table();
+    if !skips.is_empty() {
+        print!("\n{skips}");
+    }
     check_scored(&merged.report)?;
     write_json(json, &merged.report.json_document(&merged.config))
 }

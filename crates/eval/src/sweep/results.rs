@@ -320,6 +320,7 @@ pub fn read_rows(path: &Path, expected: &[String]) -> Result<Vec<SweepRow>, Swee
             floor_hit_rate: optional(base + 8)?,
             evaal: optional(base + 9)?,
             radius_95_coverage: optional(base + 10)?,
+            walks_skipped: 0,
         };
         rows.push(SweepRow {
             index: int(0)?,
