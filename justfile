@@ -24,6 +24,12 @@ ci:
 bench name="":
     cargo bench -p wipdr-benches {{ if name == "" { "" } else { "--bench " + name } }}
 
+# The Positioner's speed against docs/results/positioner.md: fails when a scheme's cost a
+# sample grew more than 25 % (run on a quiet machine).
+bench-check:
+    cargo bench -p wipdr-benches --bench positioner
+    python3 benches/check_positioner.py
+
 # Inspect the five real floors.
 inspect:
     for f in {{floors}}; do cargo run --release --bin wipdr -- inspect $f; done

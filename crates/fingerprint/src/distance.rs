@@ -260,13 +260,7 @@ impl Distance for SharedAp {
         };
         // An AP heard by one side only counts P(heard | its value) of one (1 without the
         // detection weighting, the plain non-shared fraction); the union alike.
-        let heard = |v: f32| {
-            if self.detection_mid_db > 0.0 {
-                1.0 / (1.0 + (-(v - null - self.detection_mid_db) / DETECTION_WIDTH_DB).exp())
-            } else {
-                1.0
-            }
-        };
+        let heard = |v: f32| self.one_sided_weight(v, null);
         let (mut sum, mut shared, mut union_w, mut alone_w) = (0f32, 0u32, 0f32, 0f32);
         for (&q, &r) in a.iter().zip(b) {
             let alone = match (q > null, r > null) {
@@ -292,6 +286,132 @@ impl Distance for SharedAp {
             SHARED_AP_NONE
         };
         mean + self.lambda * alone_w / union_w
+    }
+}
+
+impl SharedAp {
+    /// What an AP heard by one side only (at value `v`, in the representation whose "not
+    /// heard" is `null`) counts in the non-shared fraction: `P(heard | v)` with the
+    /// detection weighting ([`Self::detection_mid_db`] > 0), else 1.
+    #[inline]
+    pub fn one_sided_weight(&self, v: f32, null: f32) -> f32 {
+        if self.detection_mid_db > 0.0 {
+            1.0 / (1.0 + (-(v - null - self.detection_mid_db) / DETECTION_WIDTH_DB).exp())
+        } else {
+            1.0
+        }
+    }
+
+    /// [`SharedAp::eval`] of two sparse fingerprints whose "not heard" is 0: the same
+    /// terms added in the same order (by AP column), so the result is bit-identical to the
+    /// dense evaluation, at the cost of the two heard lists instead of every AP of the map.
+    /// `a` is the query (the side whose offset is removed), `b` the reference; each side's
+    /// `weights` hold [`Self::one_sided_weight`] of its values (null 0).
+    ///
+    /// ```
+    /// use wipdr_fingerprint::distance::{Distance, SharedAp, SparseFingerprint};
+    /// let d = SharedAp { detection_mid_db: 20.0, ..SharedAp::default() };
+    /// let (q, r) = ([30.0f32, 0.0, 12.0, 0.0], [25.0f32, 40.0, 0.0, 0.0]);
+    /// let side = |v: &[f32]| {
+    ///     let cols: Vec<u32> = (0..v.len() as u32).filter(|&j| v[j as usize] > 0.0).collect();
+    ///     let vals: Vec<f32> = cols.iter().map(|&j| v[j as usize]).collect();
+    ///     let w: Vec<f32> = vals.iter().map(|&x| d.one_sided_weight(x, 0.0)).collect();
+    ///     (cols, vals, w)
+    /// };
+    /// let ((qc, qv, qw), (rc, rv, rw)) = (side(&q), side(&r));
+    /// let sparse = d.eval_sparse(
+    ///     SparseFingerprint { columns: &qc, values: &qv, weights: &qw },
+    ///     SparseFingerprint { columns: &rc, values: &rv, weights: &rw },
+    /// );
+    /// assert_eq!(sparse.to_bits(), d.eval(&q, &r, 0.0).to_bits());
+    /// ```
+    pub fn eval_sparse(&self, a: SparseFingerprint<'_>, b: SparseFingerprint<'_>) -> f32 {
+        let offset = if self.max_offset_db > 0.0 {
+            let (mut diff, mut n) = (0f32, 0u32);
+            for_each_shared(a.columns, b.columns, |i, k| {
+                diff += a.values[i] - b.values[k];
+                n += 1;
+            });
+            if n >= SHARED_AP_MIN_FOR_OFFSET {
+                (diff / n as f32).clamp(-self.max_offset_db, self.max_offset_db)
+            } else {
+                0.0
+            }
+        } else {
+            0.0
+        };
+        // The merge written out (this loop is the matcher's whole cost): in column order,
+        // a shared AP adds its difference and 1 to the union, an AP of one side its weight
+        // to the non-shared part and the union, as the dense loop does.
+        let (mut sum, mut shared, mut union_w, mut alone_w) = (0f32, 0u32, 0f32, 0f32);
+        let (ac, av, aw) = (a.columns, a.values, a.weights);
+        let (bc, bv, bw) = (b.columns, b.values, b.weights);
+        let (mut i, mut k) = (0, 0);
+        while i < ac.len() && k < bc.len() {
+            let (ja, jb) = (ac[i], bc[k]);
+            if ja == jb {
+                sum += (av[i] - bv[k] - offset).abs();
+                shared += 1;
+                union_w += 1.0;
+                i += 1;
+                k += 1;
+            } else if ja < jb {
+                alone_w += aw[i];
+                union_w += aw[i];
+                i += 1;
+            } else {
+                alone_w += bw[k];
+                union_w += bw[k];
+                k += 1;
+            }
+        }
+        for &w in &aw[i.min(aw.len())..] {
+            alone_w += w;
+            union_w += w;
+        }
+        for &w in &bw[k.min(bw.len())..] {
+            alone_w += w;
+            union_w += w;
+        }
+        if union_w <= 0.0 {
+            return 0.0;
+        }
+        let mean = if shared > 0 {
+            sum / shared as f32
+        } else {
+            SHARED_AP_NONE
+        };
+        mean + self.lambda * alone_w / union_w
+    }
+}
+
+/// One side of [`SharedAp::eval_sparse`]: the heard APs' columns (strictly increasing),
+/// their values (> 0) and one-sided weights, aligned.
+#[derive(Debug, Clone, Copy)]
+pub struct SparseFingerprint<'a> {
+    /// AP columns, strictly increasing.
+    pub columns: &'a [u32],
+    /// Values in the representation, > 0 (heard).
+    pub values: &'a [f32],
+    /// [`SharedAp::one_sided_weight`] of each value.
+    pub weights: &'a [f32],
+}
+
+/// Calls `visit(i, k)` for each column in both strictly increasing lists (`a[i] == b[k]`),
+/// in increasing order.
+#[inline]
+fn for_each_shared(a: &[u32], b: &[u32], mut visit: impl FnMut(usize, usize)) {
+    let (mut i, mut k) = (0, 0);
+    while i < a.len() && k < b.len() {
+        match a[i].cmp(&b[k]) {
+            std::cmp::Ordering::Equal => {
+                visit(i, k);
+                i += 1;
+                k += 1;
+            }
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => k += 1,
+        }
     }
 }
 
@@ -607,5 +727,45 @@ mod tests {
             Some(-100.0),
         );
         assert!(t.null_value() > 0.0 && t.apply(Some(-50.0)) > t.null_value());
+    }
+
+    mod sparse_shared_ap {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// A dense fingerprint over `m` APs, not heard = 0, and its sparse side.
+        fn sides(values: &[f32], d: &SharedAp) -> (Vec<u32>, Vec<f32>, Vec<f32>) {
+            let cols: Vec<u32> = (0..values.len() as u32)
+                .filter(|&j| values[j as usize] > 0.0)
+                .collect();
+            let vals: Vec<f32> = cols.iter().map(|&j| values[j as usize]).collect();
+            let w = vals.iter().map(|&x| d.one_sided_weight(x, 0.0)).collect();
+            (cols, vals, w)
+        }
+
+        fn fingerprint(m: usize) -> impl Strategy<Value = Vec<f32>> {
+            // Half the APs unheard (0), the rest a representation value in (0, 60].
+            proptest::collection::vec(prop_oneof![Just(0.0f32), (0.01f32..60.0f32)], m)
+        }
+
+        proptest! {
+            /// The sparse evaluation adds the same terms in the same order as the dense
+            /// one, so the two are bit-identical, for every setting of the distance.
+            #[test]
+            fn sparse_equals_dense_bit_for_bit(
+                (q, r) in (1usize..200).prop_flat_map(|m| (fingerprint(m), fingerprint(m))),
+                lambda in 0.0f32..100.0,
+                max_offset_db in prop_oneof![Just(0.0f32), 0.1f32..15.0],
+                detection_mid_db in prop_oneof![Just(0.0f32), 1.0f32..40.0],
+            ) {
+                let d = SharedAp { lambda, max_offset_db, detection_mid_db };
+                let ((qc, qv, qw), (rc, rv, rw)) = (sides(&q, &d), sides(&r, &d));
+                let sparse = d.eval_sparse(
+                    SparseFingerprint { columns: &qc, values: &qv, weights: &qw },
+                    SparseFingerprint { columns: &rc, values: &rv, weights: &rw },
+                );
+                prop_assert_eq!(sparse.to_bits(), d.eval(&q, &r, 0.0).to_bits());
+            }
+        }
     }
 }

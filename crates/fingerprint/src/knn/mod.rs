@@ -20,7 +20,7 @@
 //! batch as one matrix product `|x|^2 + |y|^2 - 2 X Y^T` with faer. Top-k is
 //! `select_nth_unstable_by` on (distance, index), so ties resolve to the lower map index.
 
-use crate::distance::{Metric, Representation, Transform};
+use crate::distance::{Metric, Representation, SparseFingerprint, Transform};
 use crate::matcher::{Matcher, Weighting, majority, observation_from_neighbours};
 use crate::{FingerprintError, Query, RadioMap};
 use rayon::prelude::*;
@@ -106,6 +106,11 @@ enum SparseKind {
     /// [`SharedAp`](crate::distance::SharedAp) with its `lambda`: per point the shared-AP
     /// count and `sum |q - x|` accumulate over the query's lists; heard = value > 0.
     SharedAp(f32),
+    /// [`SharedAp`](crate::distance::SharedAp) with its common-offset removal or detection
+    /// weighting on: per point, a merge of the query's and the point's heard lists
+    /// ([`SharedAp::eval_sparse`](crate::distance::SharedAp::eval_sparse)), bit-identical to
+    /// the dense evaluation.
+    SharedApWeighted(crate::distance::SharedAp),
 }
 
 #[derive(Debug)]
@@ -126,6 +131,9 @@ enum Engine {
         row_offsets: Vec<usize>,
         row_columns: Vec<u32>,
         row_values: Vec<f32>,
+        /// Aligned with `row_values` for [`SparseKind::SharedApWeighted`]: each value's
+        /// one-sided weight; empty for the other kinds.
+        row_weights: Vec<f32>,
     },
     Dense {
         /// Row-major `n x stride`, padded with 0.
@@ -198,10 +206,11 @@ impl KnnMatcher {
             (Metric::SquaredEuclidean, true) => Some(SparseKind::Squared),
             (Metric::Manhattan, true) => Some(SparseKind::Manhattan),
             (Metric::Sorensen, true) => Some(SparseKind::Sorensen),
-            // the common-offset removal needs two passes: the dense engine's `Metric::eval`
             (Metric::SharedAp(d), true) if d.max_offset_db == 0.0 && d.detection_mid_db == 0.0 => {
                 Some(SparseKind::SharedAp(d.lambda))
             }
+            // The offset removal and the detection weighting: a merge of heard lists.
+            (Metric::SharedAp(d), true) => Some(SparseKind::SharedApWeighted(d)),
             _ => None,
         };
         let engine = match sparse_kind {
@@ -309,6 +318,27 @@ impl KnnMatcher {
         out.clear();
         match &self.engine {
             Engine::Sparse {
+                kind: SparseKind::SharedApWeighted(d),
+                row_offsets,
+                row_columns,
+                row_values,
+                row_weights,
+                ..
+            } => {
+                let query = SparseQuery::new(q, d);
+                for &i in candidates {
+                    let range = row_offsets[i as usize]..row_offsets[i as usize + 1];
+                    out.push(d.eval_sparse(
+                        query.side(),
+                        SparseFingerprint {
+                            columns: &row_columns[range.clone()],
+                            values: &row_values[range.clone()],
+                            weights: &row_weights[range],
+                        },
+                    ));
+                }
+            }
+            Engine::Sparse {
                 kind: SparseKind::SharedAp(lambda),
                 norms,
                 row_offsets,
@@ -349,8 +379,8 @@ impl KnnMatcher {
                         SparseKind::Euclidean | SparseKind::Squared => qv * qv,
                         SparseKind::Manhattan => qv.abs(),
                         SparseKind::Sorensen => qv,
-                        // Handled by the arm above.
-                        SparseKind::SharedAp(_) => 0.0,
+                        // Handled by the arms above.
+                        SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => 0.0,
                     };
                 }
                 for &i in candidates {
@@ -382,8 +412,8 @@ impl KnnMatcher {
                                 sorensen_from_shared(q_norm, q_abs, norms[i], abs_norms[i], shared)
                             }
                         }
-                        // Handled by the arm above.
-                        SparseKind::SharedAp(_) => 0.0,
+                        // Handled by the arms above.
+                        SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => 0.0,
                     };
                     out.push(key);
                 }
@@ -416,6 +446,29 @@ impl KnnMatcher {
 
     fn distances_into(&self, q: &[f32], out: &mut [f32]) {
         match &self.engine {
+            Engine::Sparse {
+                kind: SparseKind::SharedApWeighted(d),
+                row_offsets,
+                row_columns,
+                row_values,
+                row_weights,
+                ..
+            } => {
+                let query = SparseQuery::new(q, d);
+                for (o, range) in out
+                    .iter_mut()
+                    .zip(row_offsets.windows(2).map(|w| w[0]..w[1]))
+                {
+                    *o = d.eval_sparse(
+                        query.side(),
+                        SparseFingerprint {
+                            columns: &row_columns[range.clone()],
+                            values: &row_values[range.clone()],
+                            weights: &row_weights[range],
+                        },
+                    );
+                }
+            }
             Engine::Sparse {
                 kind: SparseKind::SharedAp(lambda),
                 offsets,
@@ -462,8 +515,8 @@ impl KnnMatcher {
                         SparseKind::Euclidean | SparseKind::Squared => qv * qv,
                         SparseKind::Manhattan => qv.abs(),
                         SparseKind::Sorensen => qv,
-                        // Handled by the arm above.
-                        SparseKind::SharedAp(_) => 0.0,
+                        // Handled by the arms above.
+                        SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => 0.0,
                     };
                     let range = offsets[j]..offsets[j + 1];
                     let (ps, vs) = (&points[range.clone()], &values[range]);
@@ -478,7 +531,7 @@ impl KnnMatcher {
                                 out[i as usize] += qv.abs() + x.abs() - (qv - x).abs();
                             }
                         }
-                        SparseKind::SharedAp(_) => {}
+                        SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => {}
                     }
                 }
                 match kind {
@@ -497,7 +550,7 @@ impl KnnMatcher {
                             *o = sorensen_from_shared(q_norm, q_abs, s, a, *o);
                         }
                     }
-                    SparseKind::SharedAp(_) => {}
+                    SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => {}
                 }
             }
             Engine::Dense { matrix, stride } => {
@@ -749,7 +802,11 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         for (j, v) in map.heard(i) {
             let x = t.apply(Some(v));
             // Shared-AP's "heard" is a value above the null (0); other kinds keep any non-zero.
-            if x == 0.0 || (matches!(kind, SparseKind::SharedAp(_)) && x < 0.0) {
+            let shared_ap = matches!(
+                kind,
+                SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_)
+            );
+            if x == 0.0 || (shared_ap && x < 0.0) {
                 continue;
             }
             per_ap[j].push((i as u32, x));
@@ -757,7 +814,7 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
                 SparseKind::Euclidean | SparseKind::Squared => x * x,
                 SparseKind::Manhattan => x.abs(),
                 SparseKind::Sorensen => x,
-                SparseKind::SharedAp(_) => 1.0,
+                SparseKind::SharedAp(_) | SparseKind::SharedApWeighted(_) => 1.0,
             };
             abs_norms[i] += x.abs();
         }
@@ -775,6 +832,11 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         }
         offsets.push(points.len());
     }
+    let weight = |x: f32| match kind {
+        SparseKind::SharedApWeighted(d) => Some(d.one_sided_weight(x, 0.0)),
+        _ => None,
+    };
+    let mut row_weights = Vec::new();
     let mut row_offsets = Vec::with_capacity(n + 1);
     let mut row_columns = Vec::with_capacity(points.len());
     let mut row_values = Vec::with_capacity(points.len());
@@ -783,6 +845,7 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         for (j, x) in list {
             row_columns.push(j);
             row_values.push(x);
+            row_weights.extend(weight(x));
         }
         row_offsets.push(row_columns.len());
     }
@@ -796,6 +859,42 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         row_offsets,
         row_columns,
         row_values,
+        row_weights,
+    }
+}
+
+/// A query's heard APs (value > 0, the sparse engines' null) as a sorted sparse side of
+/// [`SharedAp::eval_sparse`](crate::distance::SharedAp::eval_sparse).
+struct SparseQuery {
+    columns: Vec<u32>,
+    values: Vec<f32>,
+    weights: Vec<f32>,
+}
+
+impl SparseQuery {
+    fn new(q: &[f32], d: &crate::distance::SharedAp) -> Self {
+        let mut out = Self {
+            columns: Vec::new(),
+            values: Vec::new(),
+            weights: Vec::new(),
+        };
+        for (j, &v) in q.iter().enumerate() {
+            if v > 0.0 {
+                // Columns fit u32: the radio map's vocabulary is capped far below.
+                out.columns.push(u32::try_from(j).unwrap_or(u32::MAX));
+                out.values.push(v);
+                out.weights.push(d.one_sided_weight(v, 0.0));
+            }
+        }
+        out
+    }
+
+    fn side(&self) -> SparseFingerprint<'_> {
+        SparseFingerprint {
+            columns: &self.columns,
+            values: &self.values,
+            weights: &self.weights,
+        }
     }
 }
 

@@ -57,9 +57,10 @@ impl PointMassFilter {
             return None;
         }
         let (mode, radius) = (self.mode?, self.cfg.estimate_radius_m);
-        let mean = self.mean_near(mode, radius);
+        let cells = self.near_cells(mode, radius);
+        let mean = super::mode::mean_of(&cells, self.offset_of(mode));
         let o = if self.cfg.estimate_median {
-            self.median_near(mode, radius, mean)
+            super::mode::median_of(&cells, mean, self.cfg.cell_m)
         } else {
             mean
         };

@@ -126,52 +126,23 @@ impl PointMassFilter {
     }
 
     pub(super) fn mean_near(&self, centre: usize, radius: f64) -> Vector2 {
-        let c = self.offset_of(centre);
-        let (mut sum, mut w) = (Vector2::zeros(), 0.0);
-        self.for_each_near(centre, radius, |o, p| {
-            sum += p * o;
-            w += p;
-        });
-        if w > 0.0 { sum / w } else { c }
+        mean_of(&self.near_cells(centre, radius), self.offset_of(centre))
     }
 
     /// The posterior's geometric median within `radius` of the cell `centre` (0: the whole
-    /// posterior), by Weiszfeld's iteration from `start`: the point of least expected
-    /// Euclidean distance, which is what the evaluation scores (the mean is least in expected
-    /// squared distance, and a second mode pulls it further).
+    /// posterior), by Weiszfeld's iteration from `start` ([`median_of`]).
     pub(super) fn median_near(&self, centre: usize, radius: f64, start: Vector2) -> Vector2 {
-        const ROUNDS: usize = 50;
-        let tolerance = 1e-3 * self.cfg.cell_m;
-        // A cell closer than this to the iterate counts at this distance (Weiszfeld's step is
-        // undefined at a data point).
-        let near = 1e-2 * self.cfg.cell_m;
-        // Each pass also prices the iterate (its expected distance); an iterate no cheaper than
-        // the one before ends the search with that one, so the result is never worse than
-        // `start` (the clamp can step off a cell that is itself the median).
-        let (mut best, mut best_cost) = (start, f64::INFINITY);
-        let mut m = start;
-        let mut converged = false;
-        for round in 0..=ROUNDS {
-            let (mut sum, mut w, mut cost) = (Vector2::zeros(), 0.0, 0.0);
-            self.for_each_near(centre, radius, |o, p| {
-                let d = (o - m).norm();
-                cost += p * d;
-                let k = p / d.max(near);
-                sum += k * o;
-                w += k;
-            });
-            if cost.is_nan() || cost >= best_cost {
-                break;
-            }
-            (best, best_cost) = (m, cost);
-            if converged || round == ROUNDS || !(w > 0.0 && w.is_finite()) {
-                break;
-            }
-            let next = sum / w;
-            converged = (next - m).norm() < tolerance;
-            m = next;
-        }
-        best
+        median_of(&self.near_cells(centre, radius), start, self.cfg.cell_m)
+    }
+
+    /// The `(offset, probability)` of every active cell of positive probability within
+    /// `radius` of the cell `centre` (0: every active cell), in [`Self::for_each_near`]'s
+    /// order: gathered once, so the estimate's mean and its median's rounds walk a short
+    /// list instead of the lattice window again.
+    pub(super) fn near_cells(&self, centre: usize, radius: f64) -> Vec<(Vector2, f64)> {
+        let mut cells = Vec::new();
+        self.for_each_near(centre, radius, |o, p| cells.push((o, p)));
+        cells
     }
 
     /// Calls `f(offset, probability)` for every active cell of positive probability within
@@ -204,7 +175,8 @@ impl PointMassFilter {
                 if p <= 0.0 {
                     continue;
                 }
-                let o = self.offset_of(i);
+                // `offset_of(i)` without its division: the same centre, the same bits.
+                let o = self.lattice.centre(col, r).coords;
                 if radius > 0.0 && (o - c).norm() > radius {
                     continue;
                 }
@@ -220,16 +192,19 @@ impl PointMassFilter {
         let nx = self.lattice.cols();
         let (x0, x1, y0, y1) = self.active;
         let (mut sxx, mut sxy, mut syy, mut w) = (0.0, 0.0, 0.0, 0.0);
+        // The cell centres' offsets from `centre`, row by row (the same subtractions as
+        // `offset_of(i) - centre`, without a division per cell).
         for r in y0..=y1 {
             let row = &self.prob[r * nx + x0..=r * nx + x1];
+            let dy = self.lattice.centre_y(r) - centre.y;
             for (col, &p) in (x0..=x1).zip(row) {
                 if p <= 0.0 {
                     continue;
                 }
-                let d = self.offset_of(r * nx + col) - centre;
-                sxx += p * d.x * d.x;
-                sxy += p * d.x * d.y;
-                syy += p * d.y * d.y;
+                let dx = self.lattice.centre_x(col) - centre.x;
+                sxx += p * dx * dx;
+                sxy += p * dx * dy;
+                syy += p * dy * dy;
                 w += p;
             }
         }
@@ -240,4 +215,52 @@ impl PointMassFilter {
         }
         nalgebra::Matrix2::new(sxx / w + cell, sxy / w, sxy / w, syy / w + cell)
     }
+}
+
+/// The probability-weighted mean of `cells`, `fallback` when they weigh nothing.
+pub(super) fn mean_of(cells: &[(Vector2, f64)], fallback: Vector2) -> Vector2 {
+    let (mut sum, mut w) = (Vector2::zeros(), 0.0);
+    for &(o, p) in cells {
+        sum += p * o;
+        w += p;
+    }
+    if w > 0.0 { sum / w } else { fallback }
+}
+
+/// The geometric median of the weighted `cells` by Weiszfeld's iteration from `start`: the
+/// point of least expected Euclidean distance, which is what the evaluation scores (the mean
+/// is least in expected squared distance, and a second mode pulls it further). `cell_m`
+/// scales the convergence tolerance and the distance below which a cell counts as at the
+/// iterate (Weiszfeld's step is undefined at a data point).
+pub(super) fn median_of(cells: &[(Vector2, f64)], start: Vector2, cell_m: f64) -> Vector2 {
+    const ROUNDS: usize = 50;
+    let tolerance = 1e-3 * cell_m;
+    let near = 1e-2 * cell_m;
+    // Each pass also prices the iterate (its expected distance); an iterate no cheaper than
+    // the one before ends the search with that one, so the result is never worse than
+    // `start` (the clamp can step off a cell that is itself the median).
+    let (mut best, mut best_cost) = (start, f64::INFINITY);
+    let mut m = start;
+    let mut converged = false;
+    for round in 0..=ROUNDS {
+        let (mut sum, mut w, mut cost) = (Vector2::zeros(), 0.0, 0.0);
+        for &(o, p) in cells {
+            let d = (o - m).norm();
+            cost += p * d;
+            let k = p / d.max(near);
+            sum += k * o;
+            w += k;
+        }
+        if cost.is_nan() || cost >= best_cost {
+            break;
+        }
+        (best, best_cost) = (m, cost);
+        if converged || round == ROUNDS || !(w > 0.0 && w.is_finite()) {
+            break;
+        }
+        let next = sum / w;
+        converged = (next - m).norm() < tolerance;
+        m = next;
+    }
+    best
 }
