@@ -125,12 +125,15 @@ impl PointMassFilter {
         self.mode = Some(chosen);
     }
 
+    #[cfg(test)]
     pub(super) fn mean_near(&self, centre: usize, radius: f64) -> Vector2 {
         mean_of(&self.near_cells(centre, radius), self.offset_of(centre))
     }
 
     /// The posterior's geometric median within `radius` of the cell `centre` (0: the whole
-    /// posterior), by Weiszfeld's iteration from `start` ([`median_of`]).
+    /// posterior), by Weiszfeld's iteration from `start` ([`median_of`]); the estimate
+    /// gathers the cells once and calls [`median_of`] itself.
+    #[cfg(test)]
     pub(super) fn median_near(&self, centre: usize, radius: f64, start: Vector2) -> Vector2 {
         median_of(&self.near_cells(centre, radius), start, self.cfg.cell_m)
     }
