@@ -1,0 +1,145 @@
+//! Scoring on held-out walks through the library's inference (`wipdr_pdr::odometry`): the
+//! per-segment displacement error of the learned source and of the step model on the same
+//! segments, the learned 95 % ellipse coverage, and PDR from the true start.
+
+use crate::data::WalkRec;
+use anyhow::Result;
+use serde::Serialize;
+use wipdr_pdr::odometry::features::{CHANNELS, WINDOW, Window};
+use wipdr_pdr::odometry::{
+    CHI2_2_95, LearnedOdometry, OdometryOutput, mahalanobis2, rotate_heading, span_displacement,
+};
+
+/// Errors gathered over walks.
+#[derive(Debug, Default, Clone, Serialize)]
+pub struct Scores {
+    /// Learned per-segment displacement errors, m.
+    pub learned: Vec<f64>,
+    /// Step-model per-segment displacement errors on the same segments, m.
+    pub steps: Vec<f64>,
+    /// Learned segments inside their 95 % ellipse.
+    pub inside95: usize,
+    /// Segment lengths, m.
+    pub lengths: Vec<f64>,
+    /// Learned PDR-from-the-true-start errors at waypoints after the first Wi-Fi scan, m.
+    pub pdr_learned: Vec<f64>,
+    /// The step model's, same waypoints, m.
+    pub pdr_steps: Vec<f64>,
+}
+
+fn rotate_cov(c: [f64; 3], off: f64) -> [f64; 3] {
+    // R C R^T with R the heading rotation of `rotate_heading`
+    let (s, co) = off.sin_cos();
+    let r = [[co, s], [-s, co]];
+    let m = [[c[0], c[1]], [c[1], c[2]]];
+    let mut o = [[0.0; 2]; 2];
+    for i in 0..2 {
+        for j in 0..2 {
+            for k in 0..2 {
+                for l in 0..2 {
+                    o[i][j] += r[i][k] * m[k][l] * r[j][l];
+                }
+            }
+        }
+    }
+    [o[0][0], o[0][1], o[1][1]]
+}
+
+/// The learned outputs of a cached walk.
+pub fn outputs(model: &LearnedOdometry, w: &WalkRec) -> Result<Vec<OdometryOutput>> {
+    let per = CHANNELS * WINDOW;
+    Ok(w.t_end
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            model.predict(&Window {
+                t_end: t,
+                heading: w.heading[k],
+                data: w.data[k * per..(k + 1) * per].to_vec(),
+            })
+        })
+        .collect::<Result<_, _>>()?)
+}
+
+impl Scores {
+    /// Adds a walk.
+    pub fn add(&mut self, model: &LearnedOdometry, w: &WalkRec) -> Result<()> {
+        let outs = outputs(model, w)?;
+        for s in &w.segments {
+            let Some((d, c)) = span_displacement(&outs, s.t_a, s.t_b) else {
+                continue;
+            };
+            let d = rotate_heading(d, w.offset_fold);
+            let c = rotate_cov(c, w.offset_fold);
+            let r = [s.truth[0] - d[0], s.truth[1] - d[1]];
+            self.learned.push(r[0].hypot(r[1]));
+            self.steps
+                .push((s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]));
+            self.lengths.push(s.truth[0].hypot(s.truth[1]));
+            if mahalanobis2(r, c).is_some_and(|m| m <= CHI2_2_95) {
+                self.inside95 += 1;
+            }
+        }
+        let (t0, p0) = w.first_waypoint;
+        for ((t, p), sp) in w.waypoints.iter().zip(&w.steps_positions) {
+            if w.first_wifi.is_some_and(|f| *t <= f) {
+                continue;
+            }
+            let Some((d, _)) = span_displacement(&outs, t0, *t) else {
+                continue;
+            };
+            let d = rotate_heading(d, w.offset_fold);
+            self.pdr_learned
+                .push((p0[0] + d[0] - p[0]).hypot(p0[1] + d[1] - p[1]));
+            self.pdr_steps.push((sp[0] - p[0]).hypot(sp[1] - p[1]));
+        }
+        Ok(())
+    }
+
+    /// Adds another set.
+    pub fn extend(&mut self, o: &Scores) {
+        self.learned.extend(&o.learned);
+        self.steps.extend(&o.steps);
+        self.inside95 += o.inside95;
+        self.lengths.extend(&o.lengths);
+        self.pdr_learned.extend(&o.pdr_learned);
+        self.pdr_steps.extend(&o.pdr_steps);
+    }
+
+    /// A one-line summary.
+    pub fn summary(&self) -> String {
+        format!(
+            "segments {:>5} (mean length {:.2} m) | learned mean {:.3} median {:.3} | steps mean {:.3} median {:.3} | 95% ellipse holds {:.1} % | PDR from true start: learned {:.3} steps {:.3} ({} waypoints)",
+            self.learned.len(),
+            mean(&self.lengths),
+            mean(&self.learned),
+            median(&self.learned),
+            mean(&self.steps),
+            median(&self.steps),
+            100.0 * self.inside95 as f64 / self.learned.len().max(1) as f64,
+            mean(&self.pdr_learned),
+            mean(&self.pdr_steps),
+            self.pdr_learned.len(),
+        )
+    }
+}
+
+/// Mean (NaN for none).
+pub fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// Median (NaN for none).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
