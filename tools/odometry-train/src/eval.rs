@@ -25,6 +25,19 @@ pub struct Scores {
     pub pdr_learned: Vec<f64>,
     /// The step model's, same waypoints, m.
     pub pdr_steps: Vec<f64>,
+    /// |length error| of the learned segment displacement, m.
+    pub len_learned: Vec<f64>,
+    /// |length error| of the step model's, m.
+    pub len_steps: Vec<f64>,
+    /// |direction error| of the learned segment displacement, degrees (segments >= 2 m).
+    pub dir_learned: Vec<f64>,
+    /// |direction error| of the step model's, degrees (segments >= 2 m).
+    pub dir_steps: Vec<f64>,
+}
+
+fn dir_err(a: [f64; 2], b: [f64; 2]) -> f64 {
+    let d = a[0].atan2(a[1]) - b[0].atan2(b[1]);
+    wipdr_core::angle::wrap_pi(d).abs().to_degrees()
 }
 
 fn rotate_cov(c: [f64; 3], off: f64) -> [f64; 3] {
@@ -75,7 +88,14 @@ impl Scores {
             self.learned.push(r[0].hypot(r[1]));
             self.steps
                 .push((s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]));
-            self.lengths.push(s.truth[0].hypot(s.truth[1]));
+            let len = s.truth[0].hypot(s.truth[1]);
+            self.lengths.push(len);
+            self.len_learned.push((d[0].hypot(d[1]) - len).abs());
+            self.len_steps.push((s.steps[0].hypot(s.steps[1]) - len).abs());
+            if len >= 2.0 {
+                self.dir_learned.push(dir_err(d, s.truth));
+                self.dir_steps.push(dir_err(s.steps, s.truth));
+            }
             if mahalanobis2(r, c).is_some_and(|m| m <= CHI2_2_95) {
                 self.inside95 += 1;
             }
@@ -104,12 +124,16 @@ impl Scores {
         self.lengths.extend(&o.lengths);
         self.pdr_learned.extend(&o.pdr_learned);
         self.pdr_steps.extend(&o.pdr_steps);
+        self.len_learned.extend(&o.len_learned);
+        self.len_steps.extend(&o.len_steps);
+        self.dir_learned.extend(&o.dir_learned);
+        self.dir_steps.extend(&o.dir_steps);
     }
 
     /// A one-line summary.
     pub fn summary(&self) -> String {
         format!(
-            "segments {:>5} (mean length {:.2} m) | learned mean {:.3} median {:.3} | steps mean {:.3} median {:.3} | 95% ellipse holds {:.1} % | PDR from true start: learned {:.3} steps {:.3} ({} waypoints)",
+            "segments {:>5} (mean length {:.2} m) | learned mean {:.3} median {:.3} | steps mean {:.3} median {:.3} | 95% ellipse holds {:.1} % | PDR from true start: learned {:.3} steps {:.3} ({} waypoints) | |length err| learned {:.3} steps {:.3} | |direction err| deg learned {:.1} steps {:.1}",
             self.learned.len(),
             mean(&self.lengths),
             mean(&self.learned),
@@ -120,6 +144,10 @@ impl Scores {
             mean(&self.pdr_learned),
             mean(&self.pdr_steps),
             self.pdr_learned.len(),
+            mean(&self.len_learned),
+            mean(&self.len_steps),
+            mean(&self.dir_learned),
+            mean(&self.dir_steps),
         )
     }
 }

@@ -64,7 +64,17 @@ pub struct LearnedOdometry {
     network: Network,
 }
 
+/// The shipped weights (safetensors, trained on the five ILC floors by
+/// `tools/odometry-train`; the command, data hash and training time are in the file's
+/// metadata, see `docs/results/odometry.md`).
+pub const SHIPPED_WEIGHTS: &[u8] = include_bytes!("learned.safetensors");
+
 impl LearnedOdometry {
+    /// The odometry of the shipped weights ([`SHIPPED_WEIGHTS`]).
+    pub fn shipped() -> Result<Self, OdometryError> {
+        Self::from_safetensors(SHIPPED_WEIGHTS)
+    }
+
     /// The odometry of a safetensors weight file's bytes.
     pub fn from_safetensors(bytes: &[u8]) -> Result<Self, OdometryError> {
         Ok(Self {

@@ -53,10 +53,11 @@ fn fmt_err(msg: impl Into<String>) -> OdometryError {
     OdometryError::Format(msg.into())
 }
 
+/// Tensors by name, and the file's string metadata.
+type Parsed = (BTreeMap<String, RawTensor>, BTreeMap<String, String>);
+
 /// Parses the `F32` tensors and the metadata of a safetensors buffer.
-fn parse_safetensors(
-    bytes: &[u8],
-) -> Result<(BTreeMap<String, RawTensor>, BTreeMap<String, String>), OdometryError> {
+fn parse_safetensors(bytes: &[u8]) -> Result<Parsed, OdometryError> {
     let head: [u8; 8] = bytes
         .get(..8)
         .and_then(|b| b.try_into().ok())
@@ -307,5 +308,93 @@ impl Network {
             return Err(OdometryError::NonFinite);
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A safetensors buffer of `tensors` (name, shape, values) and `strides`.
+    fn file(tensors: &[(&str, Vec<usize>, Vec<f32>)], strides: &str) -> Vec<u8> {
+        let mut header = serde_json::Map::new();
+        header.insert(
+            "__metadata__".into(),
+            serde_json::json!({ "strides": strides }),
+        );
+        let mut blob = Vec::new();
+        for (name, shape, vals) in tensors {
+            let b = blob.len();
+            for v in vals {
+                blob.extend_from_slice(&v.to_le_bytes());
+            }
+            header.insert(
+                (*name).into(),
+                serde_json::json!({"dtype": "F32", "shape": shape, "data_offsets": [b, blob.len()]}),
+            );
+        }
+        let h = serde_json::to_vec(&serde_json::Value::Object(header)).unwrap();
+        let mut out = (h.len() as u64).to_le_bytes().to_vec();
+        out.extend_from_slice(&h);
+        out.extend_from_slice(&blob);
+        out
+    }
+
+    /// One conv (one output channel, kernel 1, reading channel 0 with weight 1) and a dense
+    /// layer copying the mean into all four outputs: the output is the mean of channel 0
+    /// over the window, divided by its input scale.
+    fn tiny() -> Vec<(&'static str, Vec<usize>, Vec<f32>)> {
+        let mut w = vec![0.0; CHANNELS];
+        w[0] = 1.0;
+        vec![
+            ("conv0.weight", vec![1, CHANNELS, 1], w),
+            ("conv0.bias", vec![1], vec![0.0]),
+            ("fc0.weight", vec![OUTPUTS, 1], vec![1.0, 2.0, 0.0, -1.0]),
+            ("fc0.bias", vec![OUTPUTS], vec![0.0, 0.0, 0.5, 0.0]),
+        ]
+    }
+
+    #[test]
+    fn tiny_network_computes_the_scaled_mean() {
+        let net = Network::from_safetensors(&file(&tiny(), "1")).unwrap();
+        assert_eq!(net.parameters(), CHANNELS + 1 + 4 + 4);
+        let mut x = vec![0.0f32; CHANNELS * WINDOW];
+        for (k, v) in x[..WINDOW].iter_mut().enumerate() {
+            *v = if k % 2 == 0 { 4.0 } else { 0.0 };
+        }
+        let out = net.forward(&x).unwrap();
+        let m = 2.0 / INPUT_SCALE[0]; // mean 2 m/s², scaled
+        assert!((out[0] - m).abs() < 1e-6 && (out[1] - 2.0 * m).abs() < 1e-6);
+        assert!((out[2] - 0.5).abs() < 1e-6 && (out[3] + m).abs() < 1e-6);
+        assert!(matches!(net.forward(&x[1..]), Err(OdometryError::Input(_))));
+    }
+
+    #[test]
+    fn malformed_files_are_typed_errors() {
+        let good = file(&tiny(), "1");
+        assert!(matches!(
+            Network::from_safetensors(&good[..5]),
+            Err(OdometryError::Format(_))
+        ));
+        assert!(matches!(
+            Network::from_safetensors(&good[..good.len() - 4]),
+            Err(OdometryError::Format(_))
+        ));
+        let mut no_bias = tiny();
+        no_bias.remove(1);
+        assert!(matches!(
+            Network::from_safetensors(&file(&no_bias, "1")),
+            Err(OdometryError::Missing(_))
+        ));
+        let mut nan = tiny();
+        nan[2].2[0] = f32::NAN;
+        assert!(matches!(
+            Network::from_safetensors(&file(&nan, "1")),
+            Err(OdometryError::Format(_))
+        ));
+        assert!(matches!(
+            Network::from_safetensors(&file(&tiny(), "0")),
+            Err(OdometryError::Format(_))
+        ));
     }
 }
