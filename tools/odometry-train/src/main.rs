@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|lofo|ship|fixture|steps> [--data DIR] [--cache DIR] [--epochs N] [--seed N] [--out FILE] [--fixture FILE] [--holdout FLOOR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|lofo|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--seed N] [--out FILE] [--fixture FILE] [--holdout FLOOR]";
 
 struct Args {
     cmd: String,
@@ -107,6 +107,26 @@ fn main() -> Result<()> {
                 "{} walks, {:.1} s; sha256 {hash}",
                 ds.walks.len(),
                 t.elapsed().as_secs_f64()
+            );
+        }
+        "bench" => {
+            // the library's forward pass on the cached windows of every walk, one thread
+            let (ds, _) = data::load(&dataset_path(&a))?;
+            let model = LearnedOdometry::shipped()?;
+            let per = CHANNELS * WINDOW;
+            let n: usize = ds.walks.iter().map(|w| w.t_end.len()).sum();
+            let t = Instant::now();
+            let mut check = 0.0f64;
+            for w in &ds.walks {
+                for x in w.data.chunks_exact(per) {
+                    check += f64::from(model.network().forward(x)?[0]);
+                }
+            }
+            let secs = t.elapsed().as_secs_f64();
+            println!(
+                "{n} windows (one a second of walk) in {secs:.2} s: {:.1} us a window, {:.0}x real time for the network alone (checksum {check:.3})",
+                1e6 * secs / n as f64,
+                n as f64 / secs
             );
         }
         "steps" => {

@@ -257,24 +257,28 @@ impl Network {
         for c in &self.convs {
             let pad = c.k / 2;
             let out_len = (len + 2 * pad - c.k) / c.stride + 1;
+            // zero-padded input, one row of `len + 2 pad` per channel: no bounds tests in the
+            // inner loop
+            let plen = len + 2 * pad;
+            let mut xp = vec![0.0f32; c.inp * plen];
+            for i in 0..c.inp {
+                xp[i * plen + pad..i * plen + pad + len]
+                    .copy_from_slice(&x[i * len..(i + 1) * len]);
+            }
             let mut y = vec![0.0f32; c.out * out_len];
             for o in 0..c.out {
                 let row = &mut y[o * out_len..(o + 1) * out_len];
-                for (p, yv) in row.iter_mut().enumerate() {
-                    let mut acc = c.b[o];
-                    let base = p * c.stride;
-                    for i in 0..c.inp {
-                        let xi = &x[i * len..(i + 1) * len];
-                        let wi = &c.w[(o * c.inp + i) * c.k..(o * c.inp + i + 1) * c.k];
-                        for (j, w) in wi.iter().enumerate() {
-                            // input index base + j - pad, zero outside [0, len)
-                            if let Some(q) = (base + j).checked_sub(pad).filter(|&q| q < len) {
-                                acc += w * xi[q];
-                            }
+                row.iter_mut().for_each(|v| *v = c.b[o]);
+                for i in 0..c.inp {
+                    let xi = &xp[i * plen..(i + 1) * plen];
+                    let wi = &c.w[(o * c.inp + i) * c.k..(o * c.inp + i + 1) * c.k];
+                    for (j, &w) in wi.iter().enumerate() {
+                        for (p, yv) in row.iter_mut().enumerate() {
+                            *yv += w * xi[p * c.stride + j];
                         }
                     }
-                    *yv = acc.max(0.0);
                 }
+                row.iter_mut().for_each(|v| *v = v.max(0.0));
             }
             x = y;
             len = out_len;
