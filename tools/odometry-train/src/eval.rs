@@ -33,6 +33,19 @@ pub struct Scores {
     pub dir_learned: Vec<f64>,
     /// |direction error| of the step model's, degrees (segments >= 2 m).
     pub dir_steps: Vec<f64>,
+    /// Error of the hybrid "learned length along the step model's direction", m.
+    pub hybrid_len: Vec<f64>,
+    /// Error of the hybrid "step model's length along the learned direction", m.
+    pub hybrid_dir: Vec<f64>,
+}
+
+fn along(len: f64, dir: [f64; 2]) -> [f64; 2] {
+    let n = dir[0].hypot(dir[1]);
+    if n > 0.0 {
+        [len * dir[0] / n, len * dir[1] / n]
+    } else {
+        [0.0; 2]
+    }
 }
 
 fn dir_err(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -91,7 +104,14 @@ impl Scores {
             let len = s.truth[0].hypot(s.truth[1]);
             self.lengths.push(len);
             self.len_learned.push((d[0].hypot(d[1]) - len).abs());
-            self.len_steps.push((s.steps[0].hypot(s.steps[1]) - len).abs());
+            self.len_steps
+                .push((s.steps[0].hypot(s.steps[1]) - len).abs());
+            let hl = along(d[0].hypot(d[1]), s.steps);
+            self.hybrid_len
+                .push((s.truth[0] - hl[0]).hypot(s.truth[1] - hl[1]));
+            let hd = along(s.steps[0].hypot(s.steps[1]), d);
+            self.hybrid_dir
+                .push((s.truth[0] - hd[0]).hypot(s.truth[1] - hd[1]));
             if len >= 2.0 {
                 self.dir_learned.push(dir_err(d, s.truth));
                 self.dir_steps.push(dir_err(s.steps, s.truth));
@@ -128,12 +148,14 @@ impl Scores {
         self.len_steps.extend(&o.len_steps);
         self.dir_learned.extend(&o.dir_learned);
         self.dir_steps.extend(&o.dir_steps);
+        self.hybrid_len.extend(&o.hybrid_len);
+        self.hybrid_dir.extend(&o.hybrid_dir);
     }
 
     /// A one-line summary.
     pub fn summary(&self) -> String {
         format!(
-            "segments {:>5} (mean length {:.2} m) | learned mean {:.3} median {:.3} | steps mean {:.3} median {:.3} | 95% ellipse holds {:.1} % | PDR from true start: learned {:.3} steps {:.3} ({} waypoints) | |length err| learned {:.3} steps {:.3} | |direction err| deg learned {:.1} steps {:.1}",
+            "segments {:>5} (mean length {:.2} m) | learned mean {:.3} median {:.3} | steps mean {:.3} median {:.3} | 95% ellipse holds {:.1} % | PDR from true start: learned {:.3} steps {:.3} ({} waypoints) | |length err| learned {:.3} steps {:.3} | |direction err| deg learned {:.1} steps {:.1} | hybrids: learned length + steps direction {:.3}, steps length + learned direction {:.3}",
             self.learned.len(),
             mean(&self.lengths),
             mean(&self.learned),
@@ -148,6 +170,8 @@ impl Scores {
             mean(&self.len_steps),
             mean(&self.dir_learned),
             mean(&self.dir_steps),
+            mean(&self.hybrid_len),
+            mean(&self.hybrid_dir),
         )
     }
 }

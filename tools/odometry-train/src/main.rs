@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|steps|lofo|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--seed N] [--out FILE] [--fixture FILE] [--holdout FLOOR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--seed N] [--out FILE] [--fixture FILE] [--holdout FLOOR]";
 
 struct Args {
     cmd: String,
@@ -108,6 +108,28 @@ fn main() -> Result<()> {
                 ds.walks.len(),
                 t.elapsed().as_secs_f64()
             );
+        }
+        "score" => {
+            // re-score the models `lofo` saved, without training
+            let (ds, hash) = data::load(&dataset_path(&a))?;
+            println!("dataset sha256 {hash}");
+            let mut pooled = eval::Scores::default();
+            for f in &ds.floors {
+                let path = a
+                    .cache
+                    .join("lofo")
+                    .join(format!("{}.safetensors", f.replace('/', "_")));
+                let model = LearnedOdometry::from_safetensors(
+                    &std::fs::read(&path).with_context(|| format!("{}", path.display()))?,
+                )?;
+                let mut s = eval::Scores::default();
+                for w in ds.walks.iter().filter(|w| &w.floor == f) {
+                    s.add(&model, w)?;
+                }
+                println!("{f}: {}", s.summary());
+                pooled.extend(&s);
+            }
+            println!("pooled: {}", pooled.summary());
         }
         "bench" => {
             // the library's forward pass on the cached windows of every walk, one thread

@@ -43,9 +43,9 @@ impl Default for TrainConfig {
     fn default() -> Self {
         Self {
             seed: 44,
-            epochs: 30,
-            mse_epochs: 10,
-            batch: 32,
+            epochs: 25,
+            mse_epochs: 8,
+            batch: 16,
             lr: 2e-3,
             weight_decay: 1e-4,
             channels: vec![32, 64, 64],
