@@ -182,8 +182,9 @@ fn main() -> Result<()> {
                         .map(|s| (s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]))
                 })
                 .collect();
+            let mse = s.iter().map(|e| e * e).sum::<f64>() / s.len() as f64;
             println!(
-                "pooled: {} segments, steps mean {:.3} median {:.3}",
+                "pooled: {} segments, steps mean {:.3} median {:.3}, mean squared error {mse:.3} m² (the unit of the training's MSE loss)",
                 s.len(),
                 eval::mean(&s),
                 eval::median(&s)
