@@ -15,6 +15,8 @@
 //!   [`motion`];
 //! - calibration from walks with waypoints (least-squares step-length coefficients, the
 //!   floor's heading offset) and the leg / position scoring of PDR: [`calibrate`];
+//! - learned inertial odometry (a small network over IMU windows: a displacement a second
+//!   and its covariance, beside the step model): [`odometry`];
 //! - heading snapping to the building's dominant directions on straight stretches (heuristic
 //!   drift elimination for absolute headings; wipdr's own, off unless configured): [`snap`].
 //!
@@ -48,6 +50,7 @@ pub mod filter;
 pub mod handling;
 pub mod length;
 pub mod motion;
+pub mod odometry;
 pub mod pipeline;
 pub mod snap;
 pub mod vertical;

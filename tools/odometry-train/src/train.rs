@@ -1,0 +1,397 @@
+//! Training with candle (CPU): a 1D CNN over the windows, its outputs integrated over each
+//! waypoint segment (each second weighted by its overlap with the segment), MSE for the
+//! first epochs and then the Gaussian negative log-likelihood of the segment displacement
+//! under the summed learned covariance.
+
+use crate::data::{WalkRec, label_rv};
+use anyhow::{Result, bail};
+use candle_core::{D, DType, Device, Tensor, Var};
+use candle_nn::{Conv1d, Conv1dConfig, Linear, Module, Optimizer, VarBuilder, VarMap};
+use std::collections::BTreeMap;
+use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
+use wipdr_pdr::odometry::model::{INPUT_SCALE, OUTPUTS};
+use wipdr_pdr::odometry::{LOG_VAR_RANGE, overlap_fraction};
+
+/// Training settings.
+#[derive(Debug, Clone)]
+pub struct TrainConfig {
+    /// Seed of the weight initialisation and the batch order.
+    pub seed: u64,
+    /// Epochs.
+    pub epochs: usize,
+    /// Epochs of MSE before the NLL.
+    pub mse_epochs: usize,
+    /// Segments per batch.
+    pub batch: usize,
+    /// Learning rate.
+    pub lr: f64,
+    /// Weight decay.
+    pub weight_decay: f64,
+    /// Channels of the convolutions.
+    pub channels: Vec<usize>,
+    /// Strides of the convolutions.
+    pub strides: Vec<usize>,
+    /// Kernel size.
+    pub kernel: usize,
+    /// Hidden width of the dense head.
+    pub hidden: usize,
+    /// Mirror half of the batches left-right (augmentation).
+    pub mirror: bool,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            seed: 44,
+            epochs: 25,
+            mse_epochs: 8,
+            batch: 16,
+            lr: 2e-3,
+            weight_decay: 1e-4,
+            channels: vec![32, 64, 64],
+            strides: vec![2, 2, 2],
+            kernel: 5,
+            hidden: 64,
+            mirror: true,
+        }
+    }
+}
+
+/// SplitMix64: the seeded generator of initialisation and shuffling.
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from a seed.
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    /// Next 64 bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Fisher-Yates shuffle.
+    pub fn shuffle<T>(&mut self, v: &mut [T]) {
+        for i in (1..v.len()).rev() {
+            let j = (self.next_u64() % (i as u64 + 1)) as usize;
+            v.swap(i, j);
+        }
+    }
+}
+
+/// The network in candle, the same layers as `wipdr_pdr::odometry::model`.
+pub struct Net {
+    convs: Vec<Conv1d>,
+    fcs: Vec<Linear>,
+    scale: Tensor,
+}
+
+impl Net {
+    /// Builds the layers on `vb`.
+    pub fn new(cfg: &TrainConfig, vb: VarBuilder, dev: &Device) -> Result<Self> {
+        let mut convs = Vec::new();
+        let mut inp = CHANNELS;
+        for (i, (&c, &s)) in cfg.channels.iter().zip(&cfg.strides).enumerate() {
+            let cc = Conv1dConfig {
+                padding: cfg.kernel / 2,
+                stride: s,
+                ..Default::default()
+            };
+            convs.push(candle_nn::conv1d(
+                inp,
+                c,
+                cfg.kernel,
+                cc,
+                vb.pp(format!("conv{i}")),
+            )?);
+            inp = c;
+        }
+        let fcs = vec![
+            candle_nn::linear(inp, cfg.hidden, vb.pp("fc0"))?,
+            candle_nn::linear(cfg.hidden, OUTPUTS, vb.pp("fc1"))?,
+        ];
+        let scale: Vec<f32> = INPUT_SCALE.iter().map(|s| 1.0 / s).collect();
+        let scale = Tensor::from_vec(scale, (1, CHANNELS, 1), dev)?;
+        Ok(Self { convs, fcs, scale })
+    }
+
+    /// Raw outputs `[n, 4]` of windows `[n, CHANNELS, WINDOW]`.
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let mut h = x.broadcast_mul(&self.scale)?;
+        for c in &self.convs {
+            h = c.forward(&h)?.relu()?;
+        }
+        let mut h = h.mean(D::Minus1)?;
+        let last = self.fcs.len() - 1;
+        for (i, f) in self.fcs.iter().enumerate() {
+            h = f.forward(&h)?;
+            if i < last {
+                h = h.relu()?;
+            }
+        }
+        Ok(h)
+    }
+}
+
+/// Re-initialises every variable from the seeded generator (candle's CPU generator cannot be
+/// seeded): weights uniform in +-1/sqrt(fan_in) (PyTorch's default), biases the same.
+pub fn init_seeded(varmap: &VarMap, seed: u64) -> Result<()> {
+    let mut rng = Rng::new(seed);
+    let data = varmap
+        .data()
+        .lock()
+        .map_err(|_| anyhow::anyhow!("varmap lock"))?;
+    let sorted: BTreeMap<&String, &Var> = data.iter().collect();
+    let fan_in = |name: &str| -> usize {
+        let w = name.replace(".bias", ".weight");
+        data.get(&w)
+            .map(|v| v.dims()[1..].iter().product())
+            .unwrap_or(1)
+    };
+    for (name, var) in sorted {
+        let n = var.elem_count();
+        let bound = 1.0 / (fan_in(name) as f64).sqrt();
+        let vals: Vec<f32> = (0..n)
+            .map(|_| ((rng.uniform() * 2.0 - 1.0) * bound) as f32)
+            .collect();
+        var.set(&Tensor::from_vec(vals, var.dims(), var.device())?)?;
+    }
+    Ok(())
+}
+
+/// The training set flattened: every window of the training walks, and every segment as
+/// (label in the rotation vector frame, list of (window index, fraction)).
+pub struct TrainSet {
+    /// `[n, CHANNELS, WINDOW]` window data.
+    pub data: Vec<f32>,
+    /// Frame heading of each window.
+    pub heading: Vec<f32>,
+    /// Segments.
+    pub segments: Vec<([f32; 2], Vec<(usize, f32)>)>,
+}
+
+impl TrainSet {
+    /// The windows and segments of `walks`.
+    pub fn of(walks: &[&WalkRec]) -> Self {
+        let mut set = TrainSet {
+            data: Vec::new(),
+            heading: Vec::new(),
+            segments: Vec::new(),
+        };
+        for w in walks {
+            let base = set.heading.len();
+            set.data.extend_from_slice(&w.data);
+            set.heading.extend(w.heading.iter().map(|h| *h as f32));
+            for s in &w.segments {
+                let parts: Vec<(usize, f32)> = w
+                    .t_end
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, &t)| {
+                        let f = overlap_fraction(t, s.t_a, s.t_b);
+                        (f > 0.0).then_some((base + k, f as f32))
+                    })
+                    .collect();
+                if !parts.is_empty() {
+                    let l = label_rv(w, s);
+                    set.segments.push(([l[0] as f32, l[1] as f32], parts));
+                }
+            }
+        }
+        set
+    }
+}
+
+/// Trains a network on `walks`; returns the varmap and the final epoch's mean loss.
+pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
+    let dev = Device::Cpu;
+    let set = TrainSet::of(walks);
+    if set.segments.is_empty() {
+        bail!("no training segments");
+    }
+    let varmap = VarMap::new();
+    let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
+    let net = Net::new(cfg, vb, &dev)?;
+    init_seeded(&varmap, cfg.seed)?;
+    let mut opt = candle_nn::AdamW::new(
+        varmap.all_vars(),
+        candle_nn::ParamsAdamW {
+            lr: cfg.lr,
+            weight_decay: cfg.weight_decay,
+            ..Default::default()
+        },
+    )?;
+    let mut rng = Rng::new(cfg.seed ^ 0x5EED);
+    let mut order: Vec<usize> = (0..set.segments.len()).collect();
+    let mut last_loss = f64::NAN;
+    let per = CHANNELS * WINDOW;
+    for epoch in 0..cfg.epochs {
+        // cosine learning-rate decay
+        let lr =
+            cfg.lr * 0.5 * (1.0 + (std::f64::consts::PI * epoch as f64 / cfg.epochs as f64).cos());
+        opt.set_learning_rate(lr);
+        rng.shuffle(&mut order);
+        let nll = epoch >= cfg.mse_epochs;
+        let (mut sum, mut count) = (0.0, 0usize);
+        for chunk in order.chunks(cfg.batch) {
+            // windows used by the batch, renumbered
+            let mut local: BTreeMap<usize, usize> = BTreeMap::new();
+            for &s in chunk {
+                for &(k, _) in &set.segments[s].1 {
+                    let n = local.len();
+                    local.entry(k).or_insert(n);
+                }
+            }
+            let nw = local.len();
+            let mut x = vec![0f32; nw * per];
+            let mut sin = vec![0f32; nw];
+            let mut cos = vec![0f32; nw];
+            let mut mirrored = false;
+            for (&k, &j) in &local {
+                x[j * per..(j + 1) * per].copy_from_slice(&set.data[k * per..(k + 1) * per]);
+                sin[j] = set.heading[k].sin();
+                cos[j] = set.heading[k].cos();
+            }
+            // left-right mirror of the whole batch: the right acceleration, the forward and
+            // up angular rates, the frame heading and the label's east component change sign
+            if cfg.mirror && rng.uniform() < 0.5 {
+                for j in 0..nw {
+                    for ch in [1usize, 3, 5] {
+                        for v in &mut x[j * per + ch * WINDOW..j * per + (ch + 1) * WINDOW] {
+                            *v = -*v;
+                        }
+                    }
+                    sin[j] = -sin[j];
+                }
+                mirrored = true;
+            }
+            let mut m = vec![0f32; chunk.len() * nw];
+            let mut y = vec![0f32; chunk.len() * 2];
+            for (r, &s) in chunk.iter().enumerate() {
+                let (l, parts) = &set.segments[s];
+                y[2 * r] = if mirrored { -l[0] } else { l[0] };
+                y[2 * r + 1] = l[1];
+                for &(k, f) in parts {
+                    m[r * nw + local[&k]] += f;
+                }
+            }
+            let x = Tensor::from_vec(x, (nw, CHANNELS, WINDOW), &dev)?;
+            let sin = Tensor::from_vec(sin, (nw, 1), &dev)?;
+            let cos = Tensor::from_vec(cos, (nw, 1), &dev)?;
+            let m = Tensor::from_vec(m, (chunk.len(), nw), &dev)?;
+            let y = Tensor::from_vec(y, (chunk.len(), 2), &dev)?;
+            let out = net.forward(&x)?; // [nw, 4]
+            let f = out.narrow(1, 0, 1)?;
+            let r = out.narrow(1, 1, 1)?;
+            // world = F (sin, cos) + R (cos, -sin)
+            let dx = ((&f * &sin)? + (&r * &cos)?)?;
+            let dy = ((&f * &cos)? - (&r * &sin)?)?;
+            let d = Tensor::cat(&[&dx, &dy], 1)?; // [nw, 2]
+            let seg = m.matmul(&d)?; // [b, 2]
+            let res = (&y - &seg)?;
+            let loss = if nll {
+                let lv = out
+                    .narrow(1, 2, 2)?
+                    .clamp(LOG_VAR_RANGE.0, LOG_VAR_RANGE.1)?;
+                let v = lv.exp()?;
+                let vf = v.narrow(1, 0, 1)?;
+                let vr = v.narrow(1, 1, 1)?;
+                let ss = (&sin * &sin)?;
+                let cc = (&cos * &cos)?;
+                let sc = (&sin * &cos)?;
+                let xx = ((&vf * &ss)? + (&vr * &cc)?)?;
+                let yy = ((&vf * &cc)? + (&vr * &ss)?)?;
+                let xy = ((&vf - &vr)? * &sc)?;
+                let cov = m.matmul(&Tensor::cat(&[&xx, &xy, &yy], 1)?)?; // [b, 3]
+                let a = cov.narrow(1, 0, 1)?;
+                let b = cov.narrow(1, 1, 1)?;
+                let c = cov.narrow(1, 2, 1)?;
+                let det = ((&a * &c)? - (&b * &b)?)?;
+                let rx = res.narrow(1, 0, 1)?;
+                let ry = res.narrow(1, 1, 1)?;
+                let q = ((((&c * &rx)? * &rx)? - (((&b * &rx)? * &ry)? * 2.0)?)?
+                    + ((&a * &ry)? * &ry)?)?;
+                let q = (q / &det)?;
+                ((q + det.log()?)? * 0.5)?.mean_all()?
+            } else {
+                res.sqr()?.sum(1)?.mean_all()?
+            };
+            opt.backward_step(&loss)?;
+            let l = f64::from(loss.to_scalar::<f32>()?);
+            if !l.is_finite() {
+                bail!("non-finite loss at epoch {epoch}");
+            }
+            sum += l * chunk.len() as f64;
+            count += chunk.len();
+        }
+        last_loss = sum / count as f64;
+        eprintln!(
+            "  epoch {epoch:>3} {} loss {last_loss:.4} lr {lr:.2e}",
+            if nll { "nll" } else { "mse" }
+        );
+    }
+    Ok((varmap, last_loss))
+}
+
+/// Writes the varmap as safetensors with `metadata` (and the `strides` the Rust forward
+/// pass reads).
+pub fn save_safetensors(
+    varmap: &VarMap,
+    cfg: &TrainConfig,
+    mut metadata: BTreeMap<String, String>,
+    path: &std::path::Path,
+) -> Result<()> {
+    metadata.insert(
+        "strides".into(),
+        cfg.strides
+            .iter()
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+    );
+    let data = varmap
+        .data()
+        .lock()
+        .map_err(|_| anyhow::anyhow!("varmap lock"))?;
+    let sorted: BTreeMap<&String, &Var> = data.iter().collect();
+    let mut header = serde_json::Map::new();
+    header.insert("__metadata__".into(), serde_json::to_value(&metadata)?);
+    let mut blob: Vec<u8> = Vec::new();
+    for (name, var) in sorted {
+        let vals: Vec<f32> = var.flatten_all()?.to_vec1()?;
+        let b = blob.len();
+        for v in &vals {
+            blob.extend_from_slice(&v.to_le_bytes());
+        }
+        header.insert(
+            name.clone(),
+            serde_json::json!({"dtype": "F32", "shape": var.dims(), "data_offsets": [b, blob.len()]}),
+        );
+    }
+    let mut h = serde_json::to_vec(&serde_json::Value::Object(header))?;
+    while h.len() % 8 != 0 {
+        h.push(b' ');
+    }
+    let mut out = (h.len() as u64).to_le_bytes().to_vec();
+    out.extend_from_slice(&h);
+    out.extend_from_slice(&blob);
+    std::fs::write(path, out)?;
+    Ok(())
+}
+
+/// Raw outputs of the candle network for `windows` (`[n, CHANNELS * WINDOW]` flattened).
+pub fn candle_outputs(varmap: &VarMap, cfg: &TrainConfig, windows: &[f32]) -> Result<Vec<f32>> {
+    let dev = Device::Cpu;
+    let vb = VarBuilder::from_varmap(varmap, DType::F32, &dev);
+    let net = Net::new(cfg, vb, &dev)?;
+    let n = windows.len() / (CHANNELS * WINDOW);
+    let x = Tensor::from_vec(windows.to_vec(), (n, CHANNELS, WINDOW), &dev)?;
+    Ok(net.forward(&x)?.flatten_all()?.to_vec1()?)
+}
