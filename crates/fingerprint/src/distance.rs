@@ -277,6 +277,16 @@ impl Distance for SharedAp {
             alone_w += alone;
             union_w += alone;
         }
+        self.combine(sum, shared, alone_w, union_w)
+    }
+}
+
+impl SharedAp {
+    /// The distance from its sums: the mean difference over the `shared` APs (their
+    /// differences summing to `sum`; [`SHARED_AP_NONE`] without any) plus `lambda` times the
+    /// non-shared weight `alone_w` over the union's `union_w` (0 for an empty union).
+    #[inline]
+    fn combine(&self, sum: f32, shared: u32, alone_w: f32, union_w: f32) -> f32 {
         if union_w <= 0.0 {
             return 0.0;
         }
@@ -287,9 +297,7 @@ impl Distance for SharedAp {
         };
         mean + self.lambda * alone_w / union_w
     }
-}
 
-impl SharedAp {
     /// What an AP heard by one side only (at value `v`, in the representation whose "not
     /// heard" is `null`) counts in the non-shared fraction: `P(heard | v)` with the
     /// detection weighting ([`Self::detection_mid_db`] > 0), else 1.
@@ -373,15 +381,7 @@ impl SharedAp {
             alone_w += w;
             union_w += w;
         }
-        if union_w <= 0.0 {
-            return 0.0;
-        }
-        let mean = if shared > 0 {
-            sum / shared as f32
-        } else {
-            SHARED_AP_NONE
-        };
-        mean + self.lambda * alone_w / union_w
+        self.combine(sum, shared, alone_w, union_w)
     }
 }
 

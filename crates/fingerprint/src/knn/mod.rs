@@ -326,17 +326,13 @@ impl KnnMatcher {
                 ..
             } => {
                 let query = SparseQuery::new(q, d);
-                for &i in candidates {
-                    let range = row_offsets[i as usize]..row_offsets[i as usize + 1];
-                    out.push(d.eval_sparse(
-                        query.side(),
-                        SparseFingerprint {
-                            columns: &row_columns[range.clone()],
-                            values: &row_values[range.clone()],
-                            weights: &row_weights[range],
-                        },
-                    ));
-                }
+                let row =
+                    |i: usize| sparse_row(row_offsets, row_columns, row_values, row_weights, i);
+                out.extend(
+                    candidates
+                        .iter()
+                        .map(|&i| d.eval_sparse(query.side(), row(i as usize))),
+                );
             }
             Engine::Sparse {
                 kind: SparseKind::SharedAp(lambda),
@@ -455,18 +451,9 @@ impl KnnMatcher {
                 ..
             } => {
                 let query = SparseQuery::new(q, d);
-                for (o, range) in out
-                    .iter_mut()
-                    .zip(row_offsets.windows(2).map(|w| w[0]..w[1]))
-                {
-                    *o = d.eval_sparse(
-                        query.side(),
-                        SparseFingerprint {
-                            columns: &row_columns[range.clone()],
-                            values: &row_values[range.clone()],
-                            weights: &row_weights[range],
-                        },
-                    );
+                for (i, o) in out.iter_mut().enumerate() {
+                    let row = sparse_row(row_offsets, row_columns, row_values, row_weights, i);
+                    *o = d.eval_sparse(query.side(), row);
                 }
             }
             Engine::Sparse {
@@ -860,6 +847,23 @@ fn build_sparse(map: &RadioMap, t: &Transform, kind: SparseKind) -> Engine {
         row_columns,
         row_values,
         row_weights,
+    }
+}
+
+/// Row `i` of the point-major CSR as a sparse side of
+/// [`SharedAp::eval_sparse`](crate::distance::SharedAp::eval_sparse).
+fn sparse_row<'a>(
+    offsets: &[usize],
+    columns: &'a [u32],
+    values: &'a [f32],
+    weights: &'a [f32],
+    i: usize,
+) -> SparseFingerprint<'a> {
+    let range = offsets[i]..offsets[i + 1];
+    SparseFingerprint {
+        columns: &columns[range.clone()],
+        values: &values[range.clone()],
+        weights: &weights[range],
     }
 }
 
