@@ -177,6 +177,8 @@ fn a_trial_played_through_the_official_server_is_the_locate_track() {
             "pmf",
             "--horizon",
             HORIZON,
+            "--out",
+            &d("posted.csv"),
         ],
         dir,
     );
@@ -225,41 +227,72 @@ fn a_trial_played_through_the_official_server_is_the_locate_track() {
     let model = wipdr_positioning::SiteModel::load(dir.join("m.wipdr")).unwrap();
     let frame: GeoFrame = model.data().geo_frame.expect("IPIN models have a frame");
 
-    // The server's clock: request r is at trial time T_r = T_0 + r h (summed as the server
-    // does) and has received every line before T_r; its estimate is the locate track's latest
-    // row at or before the last line received.
+    // What the client posted: request number, the time of the step or fix the estimate is
+    // from, the string; the server recorded exactly these, in order.
+    let posted_text = std::fs::read_to_string(dir.join("posted.csv")).unwrap();
+    let posted: Vec<(usize, i64, String)> = posted_text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.splitn(3, ',').collect();
+            (
+                f[0].parse().unwrap(),
+                f[1].parse().unwrap(),
+                f[2].to_string(),
+            )
+        })
+        .collect();
+    assert!(posted.len() > 100, "{} estimates posted", posted.len());
+    assert_eq!(
+        recorded.iter().map(|r| &r.1).collect::<Vec<_>>(),
+        posted.iter().map(|p| &p.2).collect::<Vec<_>>(),
+        "the server recorded what the client posted"
+    );
+    // The server's clock: request n (from 1) is at trial time T = T_0 + (n - 1) h, summed as
+    // the server sums it, and has received every line before T.
     let h: f64 = HORIZON.parse().unwrap();
-    let ts: Vec<f64> = data.iter().map(|l| line_ts(l)).collect();
-    let mut expected: Vec<(f64, String)> = Vec::new();
-    let mut trialts = ts[0];
-    let mut served = 0usize;
-    loop {
-        if served > 0 {
-            let last_ms = (ts[served - 1] * 1000.0).round() as i64;
-            let row = track.iter().rev().find(|r| r.0 <= last_ms);
-            if let Some(&(_, x, y, Some(floor))) = row {
-                let (lat, lon) = frame.to_lat_lon(wipdr_core::Point2::new(x, y));
-                expected.push((trialts, format!("{lon:.9},{lat:.9},{floor}")));
-            }
+    let mut trial_time = vec![line_ts(data[0])];
+    for (n, (request, t_ms, text)) in posted.iter().enumerate() {
+        while trial_time.len() < *request {
+            let next = trial_time[trial_time.len() - 1] + h;
+            trial_time.push(next);
         }
-        if served == ts.len() {
-            break;
-        }
-        let end = trialts + h;
-        while served < ts.len() && ts[served] < end {
-            served += 1;
-        }
-        trialts = end;
-    }
-    assert_eq!(recorded.len(), expected.len(), "estimates recorded");
-    for (r, e) in recorded.iter().zip(&expected) {
+        let at = trial_time[request - 1];
         assert!(
-            (r.0 - e.0).abs() < 1e-3,
-            "estimate at {} s, expected at {} s",
-            r.0,
-            e.0
+            (recorded[n].0 - at).abs() < 1e-3,
+            "request {request} recorded at {} s, sent at {at} s",
+            recorded[n].0
         );
-        assert_eq!(r.1, e.1, "estimate at {} s", r.0);
+        // Causal: the estimate is from a sample before the trial time (times are the lines'
+        // AppTimestamps rounded to the ms).
+        assert!(
+            (*t_ms as f64) <= at * 1000.0 + 0.5,
+            "request {request}: estimate from {t_ms} ms after {at} s"
+        );
+        // The locate track's row of that step or fix, and no later row of a line surely
+        // received before the trial time.
+        let row = track
+            .iter()
+            .rev()
+            .find(|r| r.0 == *t_ms)
+            .unwrap_or_else(|| panic!("request {request}: no locate row at {t_ms} ms"));
+        let (lat, lon) = frame.to_lat_lon(wipdr_core::Point2::new(row.1, row.2));
+        let floor = row.3.map(|f| f.to_string()).unwrap_or_default();
+        assert_eq!(
+            text,
+            &format!("{lon:.9},{lat:.9},{floor}"),
+            "request {request} at {at} s"
+        );
+        let received = (at * 1000.0).round() as i64 - 1;
+        let newest = track
+            .iter()
+            .rev()
+            .find(|r| r.0 <= received)
+            .map_or(i64::MIN, |r| r.0);
+        assert!(
+            newest <= *t_ms,
+            "request {request}: locate has a row at {newest} ms, the client posted the one at {t_ms} ms"
+        );
     }
 
     // Scored against the walk's POSI points by the organisers' rules.

@@ -9,9 +9,11 @@
 //! Each request `GET <server>/<trial>/nextdata?horizon=H&position=P` posts the estimate `P`
 //! for the current trial time and receives the logfile lines of the next `H` seconds; the
 //! estimate is computed from the lines received before it, so the run is causal by
-//! construction. The first request posts nothing (the server holds the trial's announced
-//! initial position); a request while the positioner has no estimate yet posts nothing
-//! either. The trial ends when the server answers 405 with its final state.
+//! construction. The estimate posted is the positioner's latest, as it was after the last
+//! step or fix received (a row of `wipdr locate`'s track). The first request posts nothing
+//! (the server holds the trial's announced initial position); nor does a request while there
+//! is no estimate yet, or no floor when the format has one (the scorer needs a floor). The
+//! trial ends when the server answers 405 with its final state.
 //!
 //! **Lines to samples.** Each answer is read as a GetSensorData logfile fragment
 //! ([`wipdr_io::logfile::read_logfile_from`]), the sensor lines on the AppTimestamp clock
@@ -63,8 +65,8 @@ pub struct Args {
     /// Reload the trial first (testing trials only: a scoring trial refuses).
     #[arg(long)]
     pub reload: bool,
-    /// Also write every posted estimate as `request,position` (the request that posted it,
-    /// counted from 1, and the posted string).
+    /// Also write every posted estimate as `request,t_ms,position` (the request that posted
+    /// it, counted from 1; the time of the step or fix the estimate is from; the string).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -117,6 +119,11 @@ impl PositionFormat {
         }
         push(&mut word, &mut fields)?;
         Ok(Self { fields, separators })
+    }
+
+    /// Whether the format has a floor field.
+    pub fn has_floor(&self) -> bool {
+        self.fields.contains(&Field::Floor)
     }
 
     /// Whether the format needs the model's WGS84 frame.
@@ -247,17 +254,16 @@ pub fn run(args: Args) -> Result<()> {
     let horizon = format!("{}", args.horizon);
     let nextdata = url(&args, "nextdata");
     let mut posted: Vec<String> = Vec::new();
+    let mut latest: Option<PositionEstimate> = None;
+    let has_floor = format.has_floor();
     let (mut requests, mut lines, mut samples) = (0usize, 0usize, 0usize);
     let final_state = loop {
         let mut query = vec![("horizon", horizon.clone())];
-        let position = if requests > 0 {
-            positioner
-                .estimate()
-                .map(|e| format.format(&e, frame.as_ref()))
-        } else {
-            None
-        };
-        if let Some(p) = &position {
+        let position = latest
+            .as_ref()
+            .filter(|e| requests > 0 && (e.floor.is_some() || !has_floor))
+            .map(|e| (e.t, format.format(e, frame.as_ref())));
+        if let Some((_, p)) = &position {
             query.push(("position", p.clone()));
         }
         let (status, body) = get(&nextdata, &query)?;
@@ -267,8 +273,8 @@ pub fn run(args: Args) -> Result<()> {
             405 => break body,
             _ => bail!("nextdata: HTTP {status}: {}", body.trim()),
         }
-        if let Some(p) = position {
-            posted.push(format!("{requests},{p}"));
+        if let Some((t, p)) = position {
+            posted.push(format!("{requests},{t},{p}"));
         }
         if body.trim().is_empty() {
             continue;
@@ -279,7 +285,10 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("reading the data of request {requests}"))?;
         for s in samples_of(&log.walk) {
             samples += 1;
-            positioner.push(&s);
+            if let Some(mut e) = positioner.push(&s) {
+                e.t = s.t();
+                latest = Some(e);
+            }
         }
     };
     eprintln!(
@@ -289,7 +298,7 @@ pub fn run(args: Args) -> Result<()> {
         final_state.trim()
     );
     if let Some(out) = &args.out {
-        let mut text = String::from("request,position\n");
+        let mut text = String::from("request,t_ms,position\n");
         for p in &posted {
             text.push_str(p);
             text.push('\n');
