@@ -29,7 +29,7 @@
 //!   from a wrong floor the Wi-Fi disagrees with (barometer reading, defaults, every fix voting
 //!   for the true floor): 8 fixes with two mapped floors, 5 with three (the test
 //!   `a_wrong_floor_is_given_up_when_wifi_keeps_disagreeing`); at the IPIN logfiles' scan
-//!   interval (about 4 s) 20-32 s. Without a barometer: 6 and 4 fixes.
+//!   interval (2.9 s on Trial21_repetition01) 15-24 s. Without a barometer: 6 and 4 fixes.
 //! - **Barometric references** (absolute, differential barometry): where training walks
 //!   recorded by the same phone model within [`FloorConfig::reference_window_min`] of the
 //!   stream give their pressure on a known floor ([`PressureReference`]), each fix also weighs
@@ -592,7 +592,7 @@ mod tests {
     use proptest::prelude::*;
 
     /// Feeds `hpa(t)` at 10 Hz over `[from, to]` ms, and a fix voting `vote(t)` every 4 s
-    /// (the IPIN logfiles' scan interval).
+    /// from `from` (a slower scan rate than the IPIN logfiles' 2.9 s).
     fn feed(
         f: &mut FloorTracker,
         from: TimestampMs,
