@@ -11,9 +11,10 @@
 //!   smoothed ([`FloorConfig::pressure_smoothing_s`]); once it has settled (changed less than
 //!   [`FloorConfig::settled_hpa`] over the last [`FloorConfig::settle_s`], which is how long a
 //!   new level must hold) its change from the reference is compared with the floors' heights:
-//!   the belief moves to the floor whose height is nearest the current floor's plus the change
-//!   only when the change is at least [`FloorConfig::min_change_floors`] of the gap to the
-//!   next floor that way; the reference is then reset. A smaller change (a door or the
+//!   a change of at least [`FloorConfig::min_change_floors`] of the mean gap between floors
+//!   moves each floor's belief to the floor whose height is nearest its own plus the change
+//!   (when the change is that share of the gap to its next floor that way) and resets the
+//!   reference. A smaller change (a door or the
 //!   ventilation: 0.1-0.2 hPa; a pause on a stair landing) moves no floor, and the reference
 //!   follows a settled pressure with the time constant [`FloorConfig::reference_follow_s`], so
 //!   weather drift (up to about 1 hPa an hour) lags it by a tenth of a floor at most.
@@ -516,12 +517,18 @@ impl FloorTracker {
             return;
         }
         let change = smoothed - reference;
-        // Pressure rises going down: the height changes by -change.
-        let moved = self.shift(-change);
-        if moved {
+        // Pressure rises going down: the height changes by -change. A floor's worth of change
+        // moves each floor's mass where it leads and resets the reference even when the most
+        // likely floor stays (the fixes or the references may have moved it first: the top
+        // floor after climbing); less than that is followed.
+        if change.abs() >= c.min_change_floors * self.mean_gap_hpa() {
+            let from = self.floor();
+            self.shift(-change);
             self.reference = Some(smoothed);
-            self.changes += 1;
-            tracing::debug!(t = p.t, change_hpa = change, floor = ?self.floor(), "barometric floor change");
+            if self.floor() != from {
+                self.changes += 1;
+                tracing::debug!(t = p.t, change_hpa = change, floor = ?self.floor(), "barometric floor change");
+            }
         } else if let Some((t_prev, _)) = self.recent.iter().rev().nth(1).copied() {
             let dt = ((p.t - t_prev) as f64 / 1000.0).max(0.0);
             let a = (dt / c.reference_follow_s).min(1.0);
@@ -551,26 +558,15 @@ impl FloorTracker {
         (j != i).then_some(j)
     }
 
-    /// Moves the belief by a height change of `rise_hpa` when it moves the most likely floor
-    /// ([`FloorTracker::target`]): each floor's mass to its own target (or where it is).
-    /// Returns whether it moved.
-    fn shift(&mut self, rise_hpa: f64) -> bool {
-        let Some(best) = self
-            .floor()
-            .and_then(|f| self.levels.binary_search(&f).ok())
-        else {
-            return false;
-        };
-        if self.target(best, rise_hpa).is_none() {
-            return false;
-        }
+    /// Moves the belief by a height change of `rise_hpa`: each floor's mass to its own target
+    /// ([`FloorTracker::target`]), or where it is when it has none.
+    fn shift(&mut self, rise_hpa: f64) {
         let mut moved = vec![0.0; self.levels.len()];
         for (i, &b) in self.belief.iter().enumerate() {
             moved[self.target(i, rise_hpa).unwrap_or(i)] += b;
         }
         self.belief = moved;
         self.normalise();
-        true
     }
 
     fn normalise(&mut self) {
@@ -741,6 +737,33 @@ mod tests {
         feed(&mut f, 10, 1_900_000, hpa, |_| None);
         assert_eq!(f.floor(), Some(1));
         assert_eq!(f.barometric_changes(), 1);
+    }
+
+    #[test]
+    fn a_floor_the_fixes_found_first_still_resets_the_reference() {
+        let gap = FloorConfig::default().hpa_per_floor;
+        let mut f = tracker_on(3, 1);
+        // Up to the top floor by the stairs (20-45 s); the fixes see it before the pressure
+        // settles, so the barometer finds the belief already there.
+        let up = |t: TimestampMs| {
+            1000.0 - gap * ((t - 20_000) as f64 / 25_000.0).clamp(0.0, 1.0) + noise(t)
+        };
+        feed(&mut f, 10, 60_000, up, |t| (t >= 20_000).then_some(2));
+        assert_eq!(f.floor(), Some(2));
+        // Down two floors (70-110 s), the fixes saying nothing: measured from the top floor's
+        // pressure, not from where the climb began.
+        feed(
+            &mut f,
+            60_010,
+            140_000,
+            |t| {
+                1000.0 - gap
+                    + 2.0 * gap * ((t - 70_000) as f64 / 40_000.0).clamp(0.0, 1.0)
+                    + noise(t)
+            },
+            |_| None,
+        );
+        assert_eq!(f.floor(), Some(0));
     }
 
     #[test]
