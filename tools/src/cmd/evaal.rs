@@ -268,13 +268,15 @@ pub fn run(args: Args) -> Result<()> {
         }
         let (status, body) = get(&nextdata, &query)?;
         requests += 1;
-        match status {
-            200 => {}
-            405 => break body,
-            _ => bail!("nextdata: HTTP {status}: {}", body.trim()),
+        if !matches!(status, 200 | 405) {
+            bail!("nextdata: HTTP {status}: {}", body.trim());
         }
+        // The request that finds the trial finished (405) still sets its estimate.
         if let Some((t, p)) = position {
             posted.push(format!("{requests},{t},{p}"));
+        }
+        if status == 405 {
+            break body;
         }
         if body.trim().is_empty() {
             continue;
