@@ -43,7 +43,7 @@ fn run(walk: &wipdr_core::Walk, inject: impl Fn(TimestampMs) -> f64) -> (i64, Ve
             None => {
                 let truth = floor_of_waypoints(&walk.waypoints, t).unwrap_or(0);
                 fixes += 1;
-                let vote = if fixes % 3 == 0 {
+                let vote = if fixes.is_multiple_of(3) {
                     if truth == 0 { -2 } else { 0 }
                 } else {
                     truth
