@@ -228,6 +228,7 @@ impl PySiteModel {
             plan: Some(plan),
             geo_frame: None,
             floors,
+            floor_heights_m: Vec::new(),
         };
         let model = SiteModel::from_data(data, None)
             .map_err(|e| input_error(format!("SiteModel.from_records: {e}")))?;

@@ -61,6 +61,8 @@ enum Command {
     /// The IPIN competition's official scoring of EvAAL API estimates files against a
     /// trial's ground truth: `wipdr score --truth GT.csv EST_FILE...`.
     Score(cmd::score::Args),
+    /// Play an IPIN competition trial through the EvAAL API with a site model (causal).
+    Evaal(cmd::evaal::Args),
     /// Learn a site once (radio map, calibration, references) and save it as a model file.
     Fit(cmd::fit::Args),
     /// Write a recorded walk as a plain sample stream (CSV), the format `locate` reads.
@@ -109,6 +111,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Report(a) => cmd::report::run(a),
         Command::Score(a) => cmd::score::run(a),
+        Command::Evaal(a) => cmd::evaal::run(a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::ExportStream(a) => cmd::export_stream::run(a),
         Command::Locate(a) => cmd::locate::run(a),

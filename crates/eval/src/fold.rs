@@ -134,6 +134,10 @@ impl FoldModel {
             self.model.matcher().stream(cfg.query),
             config.floor,
         );
+        let data = self.model.data();
+        if !data.floors.is_empty() {
+            frontend.set_building_floors(&data.floors, &data.floor_heights_m);
+        }
         if let Some(id) = identity_of(walk) {
             frontend.set_pressure_references(self.model.pressure_references().clone(), id);
         }

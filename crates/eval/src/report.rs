@@ -427,6 +427,34 @@ impl EvalReport {
                 "  (walks-: walks not run for the scheme, lacking a stream it needs; see \"skipped\")"
             );
         }
+        if floors {
+            let worst = self.worst_wrong_floor();
+            for s in &self.schemes {
+                if let Some((seconds, walk)) = worst.get(s) {
+                    let _ = writeln!(
+                        out,
+                        "  worst time on a wrong floor, {s:<width$} {seconds:>7.1} s ({walk})"
+                    );
+                }
+            }
+        }
+        out
+    }
+
+    /// Per scheme, the longest time any walk spent on a wrong floor (seconds, at the scored
+    /// waypoints' sampling: [`crate::scoring::WalkScore::longest_wrong_floor_ms`]) and that
+    /// walk; schemes without floors scored are left out.
+    pub fn worst_wrong_floor(&self) -> BTreeMap<String, (f64, String)> {
+        let mut out: BTreeMap<String, (f64, String)> = BTreeMap::new();
+        for w in self.walks.iter().filter(|w| w.score.floor_scored > 0) {
+            let seconds = w.score.longest_wrong_floor_ms() as f64 / 1000.0;
+            let entry = out
+                .entry(w.scheme.clone())
+                .or_insert_with(|| (seconds, w.walk.clone()));
+            if seconds > entry.0 {
+                *entry = (seconds, w.walk.clone());
+            }
+        }
         out
     }
 

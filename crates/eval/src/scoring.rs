@@ -91,6 +91,33 @@ pub struct WalkScore {
 }
 
 impl WalkScore {
+    /// The longest time the walk's floor estimate was wrong, ms, at the sampling of its scored
+    /// waypoints: from the first waypoint of a run scored on a wrong floor (or before any
+    /// floor estimate) to the next waypoint scored right, or to the walk's last scored
+    /// waypoint when none follows (so an upper bound where the run ended between two
+    /// waypoints); 0 without a wrong waypoint or without true floors.
+    pub fn longest_wrong_floor_ms(&self) -> TimestampMs {
+        if self.floor_scored == 0 {
+            return 0;
+        }
+        let mut worst = 0;
+        let mut run_start: Option<TimestampMs> = None;
+        for e in &self.errors {
+            match (e.2 == Some(0), run_start) {
+                (false, None) => run_start = Some(e.0),
+                (true, Some(s)) => {
+                    worst = worst.max(e.0 - s);
+                    run_start = None;
+                }
+                _ => {}
+            }
+        }
+        if let (Some(s), Some(last)) = (run_start, self.errors.last()) {
+            worst = worst.max(last.0 - s);
+        }
+        worst
+    }
+
     /// The 2D error values alone.
     pub fn values(&self) -> Vec<f64> {
         self.errors.iter().map(|e| e.1).collect()
@@ -265,6 +292,39 @@ mod tests {
         assert_eq!(s.floor_scored, 3);
         assert_eq!(s.floor_hits(), 1);
         assert_eq!(evaal_errors(&s.errors), vec![20.0, 35.0, 5.0, 5.0]);
+        // Wrong (or no floor) from 10 until the right one at 30.
+        assert_eq!(s.longest_wrong_floor_ms(), 20);
+    }
+
+    #[test]
+    fn the_longest_wrong_floor_run_counts_to_the_next_right_waypoint_or_the_end() {
+        let score = |floors: &[Option<i32>]| WalkScore {
+            errors: floors
+                .iter()
+                .enumerate()
+                .map(|(k, f)| (1000 * k as TimestampMs, 1.0, *f))
+                .collect(),
+            floor_scored: floors.len(),
+            ..WalkScore::default()
+        };
+        assert_eq!(score(&[Some(0), Some(0)]).longest_wrong_floor_ms(), 0);
+        let runs = [
+            Some(1),
+            Some(0),
+            Some(-1),
+            Some(-1),
+            Some(-1),
+            Some(0),
+            Some(2),
+        ];
+        assert_eq!(score(&runs).longest_wrong_floor_ms(), 3000);
+        assert_eq!(
+            score(&[Some(0), Some(1), Some(1)]).longest_wrong_floor_ms(),
+            1000
+        );
+        let mut no_floors = score(&[Some(1), Some(1)]);
+        no_floors.floor_scored = 0;
+        assert_eq!(no_floors.longest_wrong_floor_ms(), 0);
     }
 
     #[test]

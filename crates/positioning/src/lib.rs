@@ -65,7 +65,9 @@ pub mod smooth;
 pub use config::PositionerConfig;
 pub use error::PositioningError;
 pub use estimate::PositionEstimate;
-pub use floor_tracker::{FloorConfig, FloorTracker, PressureReference, StreamIdentity};
+pub use floor_tracker::{
+    FloorConfig, FloorTracker, HPA_PER_METRE, PressureReference, StreamIdentity,
+};
 pub use positioner::{Event, Frontend, FusionStage, Positioner, StreamCounts, track_of};
 pub use sample::{PressureSample, Sample, samples_of};
 pub use site::{Site, WALKABLE_CELL_M, stream_seed};

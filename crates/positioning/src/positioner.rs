@@ -116,6 +116,15 @@ impl Frontend {
         }
     }
 
+    /// Gives the floor estimate the building's floors and their heights, metres
+    /// ([`FloorTracker::with_building`]: floors without fingerprints are reached by the
+    /// barometer); no effect when the map has no floors. Call before the first sample.
+    pub fn set_building_floors(&mut self, floors: &[i32], heights_m: &[f64]) {
+        if let Some(t) = self.floors.take() {
+            self.floors = Some(t.with_building(floors, heights_m));
+        }
+    }
+
     /// The stream's current floor (`None` when the map has no floors, or before a fix).
     pub fn floor(&self) -> Option<i32> {
         self.floors.as_ref().and_then(FloorTracker::floor)
@@ -475,6 +484,12 @@ impl Positioner {
         identity: crate::StreamIdentity,
     ) {
         self.frontend.set_pressure_references(references, identity);
+    }
+
+    /// Gives the floor estimate the building's floors and their heights
+    /// ([`Frontend::set_building_floors`]). Call before the first sample.
+    pub fn set_building_floors(&mut self, floors: &[i32], heights_m: &[f64]) {
+        self.frontend.set_building_floors(floors, heights_m);
     }
 
     /// Feeds one sample to the front end only (PDR attitude and filters, matcher state, floor

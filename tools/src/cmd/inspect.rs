@@ -93,7 +93,25 @@ fn inspect_model(path: &Path) -> anyhow::Result<()> {
         if d.floors.is_empty() {
             "one, unnumbered".to_string()
         } else {
-            format!("{:?}", d.floors)
+            let mapped: std::collections::BTreeSet<i32> =
+                map.points().iter().filter_map(|p| p.floor).collect();
+            d.floors
+                .iter()
+                .enumerate()
+                .map(|(i, f)| {
+                    let height = d
+                        .floor_heights_m
+                        .get(i)
+                        .map_or(String::new(), |h| format!(" at {h:.1} m"));
+                    let fingerprints = if mapped.contains(f) {
+                        ""
+                    } else {
+                        " (no fingerprints)"
+                    };
+                    format!("{f}{height}{fingerprints}")
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
         }
     );
     let mut by_floor: std::collections::BTreeMap<Option<i32>, usize> = Default::default();

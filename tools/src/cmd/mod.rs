@@ -3,6 +3,7 @@
 pub mod cache;
 pub mod cluster;
 pub mod demo;
+pub mod evaal;
 pub mod eval;
 pub mod export_stream;
 pub mod fingerprint_eval;

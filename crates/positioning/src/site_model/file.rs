@@ -32,7 +32,7 @@ use wipdr_fingerprint::radio_map::SparseCell;
 pub const MAGIC: &[u8; 8] = b"WIPDRSM\0";
 /// Bumped whenever the saved types or the layout change; a file of another version is
 /// refused (fit the site again).
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Bytes of the fixed header: magic, version, payload length, payload CRC, header CRC.
 pub const HEADER_BYTES: usize = 8 + 4 + 8 + 4 + 4;
 /// Largest model file read: 2 GiB (the five ILC floors as one model take a few tens of MB).
@@ -149,6 +149,7 @@ struct Payload {
     plan: Option<wipdr_core::FloorPlan>,
     geo_frame: Option<wipdr_core::GeoFrame>,
     floors: Vec<i32>,
+    floor_heights_m: Vec<f64>,
     provenance: super::Provenance,
 }
 
@@ -213,6 +214,7 @@ impl SiteModel {
             plan: d.plan.clone(),
             geo_frame: d.geo_frame,
             floors: d.floors.clone(),
+            floor_heights_m: d.floor_heights_m.clone(),
             provenance: d.provenance.clone(),
         };
         let body = bincode::serde::encode_to_vec(&payload, codec_config())
@@ -319,6 +321,7 @@ impl SiteModel {
             plan: payload.plan,
             geo_frame: payload.geo_frame,
             floors: payload.floors,
+            floor_heights_m: payload.floor_heights_m,
             provenance: payload.provenance,
         };
         SiteModel::from_data(data, None).map_err(|e| match e {

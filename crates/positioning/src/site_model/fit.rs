@@ -3,7 +3,7 @@
 //! site's training data in the core vocabulary.
 
 use super::coverage::{MeasuredPoint, measured_points};
-use super::pressure::pressure_references;
+use super::pressure::{building_floors, floor_heights, pressure_references};
 use super::{Provenance, SiteModel, SiteModelData, SiteModelError};
 use crate::PositionerConfig;
 use rayon::prelude::*;
@@ -195,7 +195,7 @@ pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Wal
     calibrate_config(base, cal, &walks).0
 }
 
-/// The floors of the training data: the radio map's and the waypoints', sorted.
+/// The floors the training data names: the radio map's and the waypoints', sorted.
 fn floors_of(data: &TrainingData<'_>, map: &RadioMap) -> Vec<i32> {
     let mut floors: Vec<i32> = map
         .points()
@@ -246,7 +246,8 @@ impl SiteModel {
         let trail_segments: Vec<Segment> =
             trails_of(data.walks.iter().map(|w| w.waypoints.as_slice()));
         let provenance = Provenance::of(data, &learned.map);
-        let floors = floors_of(data, &learned.map);
+        let floors = building_floors(&floors_of(data, &learned.map));
+        let floor_heights_m = floor_heights(data.walks, &floors, positioner.floor.hpa_per_floor);
         let model_data = SiteModelData {
             name: data.name.to_string(),
             config: positioner,
@@ -259,6 +260,7 @@ impl SiteModel {
             plan: data.plan.cloned(),
             geo_frame: data.geo_frame,
             floors,
+            floor_heights_m,
             provenance,
         };
         SiteModel::from_data(model_data, plan_site)

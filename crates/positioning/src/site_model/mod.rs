@@ -57,7 +57,10 @@ pub use file::{
     FORMAT_VERSION, HEADER_BYTES, MAGIC, MAX_MAP_CELLS, MAX_MODEL_BYTES, SiteModelFileError,
 };
 pub use fit::{SiteConfig, SiteFitConfig, TrainingData, calibrate_pdr};
-pub use pressure::{REFERENCE_MAX_RANGE_HPA, REFERENCE_STRETCH_MS, pressure_references};
+pub use pressure::{
+    HEIGHT_PAIR_MAX_MS, REFERENCE_MAX_RANGE_HPA, REFERENCE_STRETCH_MS, building_floors,
+    floor_heights, pressure_references,
+};
 pub use provenance::{Provenance, SourceFile};
 
 use crate::{
@@ -132,9 +135,14 @@ pub struct SiteModelData {
     pub plan: Option<FloorPlan>,
     /// The WGS84 frame of the metre coordinates, where known.
     pub geo_frame: Option<GeoFrame>,
-    /// The building's floors (radio map and waypoints), sorted; empty for a single floor
-    /// without floor numbers.
+    /// The building's floors, sorted: every floor number from the lowest to the highest the
+    /// radio map and the waypoints name ([`building_floors`]; those without fingerprints
+    /// are reached by the barometer alone); empty for a single floor without floor numbers.
     pub floors: Vec<i32>,
+    /// The height of each of [`SiteModelData::floors`], metres above the lowest
+    /// ([`floor_heights`]: from the training walks' pressure where they change floor, else
+    /// [`crate::FloorConfig::hpa_per_floor`] apart); empty: that default for every floor.
+    pub floor_heights_m: Vec<f64>,
     /// Where the model came from.
     pub provenance: Provenance,
 }
@@ -294,6 +302,9 @@ impl SiteModel {
         let config = self.positioner_config(scheme, seed)?;
         let mut positioner =
             Positioner::from_parts(&self.matcher, &self.site, &config, stream.start)?;
+        if !self.data.floors.is_empty() {
+            positioner.set_building_floors(&self.data.floors, &self.data.floor_heights_m);
+        }
         if let Some(id) = &stream.identity {
             positioner.set_pressure_references(self.data.pressure_references.clone(), id.clone());
         }
