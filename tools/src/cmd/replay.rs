@@ -26,7 +26,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use wipdr_core::{TimestampMs, Walk};
+use wipdr_core::Walk;
 use wipdr_io::sample_stream::{PlainAp, PlainSample};
 use wipdr_positioning::Sample;
 
@@ -66,7 +66,7 @@ pub struct Args {
     pub server: String,
     /// The bearer token (visible to other users in the process list: prefer --token-file or
     /// $WIPDR_TOKEN).
-    #[arg(long, env = "WIPDR_TOKEN", hide_env_values = true)]
+    #[arg(long)]
     pub token: Option<String>,
     /// A file whose first token line is the bearer token.
     #[arg(long, conflicts_with = "token")]
@@ -386,6 +386,11 @@ fn read_token(args: &Args) -> Result<String> {
             return Ok(t.to_string());
         }
         bail!("{}: no token in the file", p.display());
+    }
+    if let Ok(t) = std::env::var("WIPDR_TOKEN")
+        && !t.trim().is_empty()
+    {
+        return Ok(t.trim().to_string());
     }
     bail!("give --token-file FILE (or --token T, or $WIPDR_TOKEN)")
 }
