@@ -228,6 +228,7 @@ struct PhoneResult {
     sent: usize,
     accepted: usize,
     refused: BTreeMap<u16, usize>,
+    rate_limited: usize,
     failed: usize,
     max_lag_ms: f64,
     error: Option<String>,
@@ -289,28 +290,47 @@ async fn phone(
         }
         r.batches += 1;
         r.sent += count;
-        match ctx.call(Method::POST, &path, Some(body.clone())).await {
-            Ok((StatusCode::OK, resp, lat)) => {
-                r.latencies_ms.push(lat.as_secs_f64() * 1e3);
-                let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
-                r.accepted += v["accepted"].as_u64().unwrap_or(0) as usize;
-            }
-            Ok((status, resp, lat)) => {
-                r.latencies_ms.push(lat.as_secs_f64() * 1e3);
-                *r.refused.entry(status.as_u16()).or_default() += 1;
-                if r.error.is_none() {
-                    r.error = Some(format!(
-                        "batch refused: {status}: {}",
-                        String::from_utf8_lossy(&resp)
-                    ));
+        // A 429 is retried after its Retry-After, as a phone would (at most 20 times).
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            match ctx.call(Method::POST, &path, Some(body.clone())).await {
+                Ok((StatusCode::OK, resp, lat)) => {
+                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
+                    r.accepted += v["accepted"].as_u64().unwrap_or(0) as usize;
+                }
+                Ok((StatusCode::TOO_MANY_REQUESTS, resp, lat)) if attempts <= 20 => {
+                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    r.rate_limited += 1;
+                    let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
+                    let wait = v["error"]["message"]
+                        .as_str()
+                        .and_then(|m| m.rsplit("retry in ").next())
+                        .and_then(|m| m.trim_end_matches(" s").parse::<u64>().ok())
+                        .unwrap_or(1)
+                        .clamp(1, 60);
+                    tokio::time::sleep(Duration::from_secs(wait)).await;
+                    continue;
+                }
+                Ok((status, resp, lat)) => {
+                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    *r.refused.entry(status.as_u16()).or_default() += 1;
+                    if r.error.is_none() {
+                        r.error = Some(format!(
+                            "batch refused: {status}: {}",
+                            String::from_utf8_lossy(&resp)
+                        ));
+                    }
+                }
+                Err(e) => {
+                    r.failed += 1;
+                    if r.error.is_none() {
+                        r.error = Some(format!("batch failed: {e}"));
+                    }
                 }
             }
-            Err(e) => {
-                r.failed += 1;
-                if r.error.is_none() {
-                    r.error = Some(format!("batch failed: {e}"));
-                }
-            }
+            break;
         }
     }
     if let Some(dir) = out {
@@ -497,6 +517,7 @@ pub fn run(args: Args) -> Result<()> {
     let accepted: usize = results.iter().map(|r| r.accepted).sum();
     let batches: usize = results.iter().map(|r| r.batches).sum();
     let failed: usize = results.iter().map(|r| r.failed).sum();
+    let rate_limited: usize = results.iter().map(|r| r.rate_limited).sum();
     let mut refused: BTreeMap<u16, usize> = BTreeMap::new();
     for r in &results {
         for (k, v) in &r.refused {
@@ -512,7 +533,7 @@ pub fn run(args: Args) -> Result<()> {
         lat.last().copied().unwrap_or(f64::NAN),
     );
     println!(
-        "replay: {phones} phones ({} scheme), {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {failed} failed, in {:.1} s",
+        "replay: {phones} phones ({} scheme), {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {rate_limited} rate-limited and retried, {failed} failed, in {:.1} s",
         args.scheme,
         elapsed.as_secs_f64()
     );
@@ -535,7 +556,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.json {
         let doc = json!({
             "phones": phones, "scheme": args.scheme, "batches": batches, "samples_sent": sent,
-            "samples_accepted": accepted, "refused": refused, "failed": failed,
+            "samples_accepted": accepted, "refused": refused, "rate_limited_retried": rate_limited, "failed": failed,
             "latency_ms": { "p50": p50, "p90": p90, "p99": p99, "max": max },
             "max_lag_ms": max_lag, "elapsed_s": elapsed.as_secs_f64(),
             "memory_bytes_before": before.map(|m| m.0), "memory_bytes_peak": peak.map(|m| m.0),
