@@ -62,11 +62,11 @@ pub fn document() -> Value {
             "application/json": { "schema": { "type": "object" } }
         }}),
     );
-    track["parameters"].as_array_mut().map(|p| {
+    if let Some(p) = track["parameters"].as_array_mut() {
         p.push(json!({ "name": "format", "in": "query", "required": false,
             "schema": { "type": "string", "enum": ["geojson", "ipin", "csv", "json"], "default": "geojson" },
             "description": "geojson: a Feature (lon/lat where the model has a WGS84 frame, else metres); ipin: t_s,lat,lon,floor at 2 Hz (needs a WGS84 frame, else 409 `format_unavailable`); csv: t_ms,x,y,floor,sd_m; json: the estimates" }))
-    });
+    }
     let sse = |summary: &str| json!({ "description": summary, "content": { "text/event-stream": { "schema": { "type": "string" } } } });
     let mut create = secured(json!({
         "summary": "Open a session",

@@ -234,13 +234,28 @@ struct PhoneResult {
     error: Option<String>,
 }
 
+/// What every phone of a run shares.
+struct PhoneSettings {
+    speed: f64,
+    duration_s: Option<f64>,
+    out: Option<PathBuf>,
+    format: Format,
+    keep_open: bool,
+}
+
 async fn phone(
     ctx: Arc<Ctx>,
     walk: Arc<Prepared>,
     n: usize,
-    args: Arc<(f64, Option<f64>, Option<PathBuf>, Format, bool)>,
+    args: Arc<PhoneSettings>,
 ) -> PhoneResult {
-    let (speed, duration_s, out, format, keep_open) = &*args;
+    let PhoneSettings {
+        speed,
+        duration_s,
+        out,
+        format,
+        keep_open,
+    } = &*args;
     let mut r = PhoneResult::default();
     let mut create = walk.create.clone();
     if n > 0 {
@@ -460,13 +475,13 @@ pub fn run(args: Args) -> Result<()> {
         });
         let before = server_memory(&ctx).await;
         let sem = Arc::new(tokio::sync::Semaphore::new(args.concurrency.max(1)));
-        let shared = Arc::new((
-            args.speed,
-            args.duration_s,
-            args.out.clone(),
-            args.format,
-            args.keep_open,
-        ));
+        let shared = Arc::new(PhoneSettings {
+            speed: args.speed,
+            duration_s: args.duration_s,
+            out: args.out.clone(),
+            format: args.format,
+            keep_open: args.keep_open,
+        });
         let t0 = Instant::now();
         let mut tasks = Vec::new();
         let walks = prepared.len();
