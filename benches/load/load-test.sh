@@ -32,13 +32,15 @@ for scheme in ${SCHEMES:-ekf pmf}; do
     "$bin" serve --model "$model" --addr 127.0.0.1:0 --tokens "$work/tokens" --db "$work/db.sqlite" \
       --max-sessions-per-token 100000 2> "$work/serve.log" &
     server=$!
-    for _ in $(seq 100); do grep -q 'listening on' "$work/serve.log" && break; sleep 0.1; done
+    for _ in $(seq 600); do grep -q 'listening on' "$work/serve.log" && break; sleep 0.1; done
     url="$(sed -n 's/^wipdr serve: listening on //p' "$work/serve.log" | head -1)"
+    rm -f "$work/run.json"
     echo "== $scheme, $n phones, ${DURATION:-60} s"
     "$bin" replay --server "$url" --token-file "$work/tokens" --phones "$n" --concurrency "$n" \
       --speed 1 --batch-ms 1000 --duration-s "${DURATION:-60}" --scheme "$scheme" \
       --json "$work/run.json" "${walks[@]}" || true
     kill -TERM "$server"; wait "$server" || true; server=""
+    [ -f "$work/run.json" ] || { printf '%s\t%s\tno result (see above)\n' "$scheme" "$n" >> "$results"; continue; }
     python3 - "$work/run.json" "$scheme" "$n" >> "$results" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
