@@ -55,3 +55,7 @@ fixtures:
 papers mode="tables":
     cargo build --release -p wipdr
     bash docs/results/papers.sh {{mode}}
+
+# Load benchmark of `wipdr serve` (docs/results/serve.md): SCHEMES="ekf pmf" PHONES="..." DURATION=60.
+load-test:
+    bash benches/load/load-test.sh

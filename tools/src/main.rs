@@ -69,6 +69,10 @@ enum Command {
     ExportStream(cmd::export_stream::Args),
     /// Position phone logs with a site model, streaming their samples through the Positioner.
     Locate(cmd::locate::Args),
+    /// Positioning as a service: an HTTP server of sessions on a site model, with a live map.
+    Serve(cmd::serve::Args),
+    /// Stream recorded walks to a `wipdr serve` as phones would (also the load generator).
+    Replay(cmd::replay::Args),
     /// Run the evaluation on the embedded synthetic fixtures, in seconds.
     Demo(cmd::demo::Args),
     /// Parameter sweeps over scheme configs, resumable and shardable.
@@ -115,6 +119,8 @@ fn main() -> std::process::ExitCode {
         Command::Fit(a) => cmd::fit::run(a),
         Command::ExportStream(a) => cmd::export_stream::run(a),
         Command::Locate(a) => cmd::locate::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
+        Command::Replay(a) => cmd::replay::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::WifiStats(a) => cmd::wifi_stats::run(a),

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# The load benchmark of `wipdr serve` (docs/results/serve.md): N phones replaying the real walks
+# of ILC site1/F1 in real time (their IMU at its recorded rate, scans as recorded, 1 s
+# batches) for DURATION seconds, server and load generator on this machine, for each scheme
+# and N; prints each run's request latency percentiles, samples sent/accepted and the
+# server's memory per session, then a table. A repository command, not a test.
+#
+#   benches/load/load-test.sh                     # ekf and pmf, N = 100 250 500 1000 1500 2000
+#   SCHEMES=pmf PHONES="1000 2000" DURATION=60 benches/load/load-test.sh
+#
+# Needs ../shared/data (or WIPDR_DATA) and a release build (made here).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+data="${WIPDR_DATA:-../shared/data}/ilc20/site1/F1"
+target="${CARGO_TARGET_DIR:-target}"
+cargo build --release --locked --bin wipdr
+bin="$target/release/wipdr"
+work="$(mktemp -d)"
+server=""
+cleanup() { [ -n "$server" ] && kill "$server" 2>/dev/null; rm -rf "$work"; }
+trap cleanup EXIT
+model="${MODEL:-$work/site1-F1.wipdr}"
+[ -f "$model" ] || "$bin" fit --data "$data" --out "$model"
+od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/tokens"
+echo >> "$work/tokens"
+walks=("$data"/path_data_files/*.txt.gz)
+results="$work/results.tsv"
+printf 'scheme\tphones\tp50_ms\tp99_ms\tmax_ms\tsent\taccepted\tkB_per_session\n' > "$results"
+for scheme in ${SCHEMES:-ekf pmf}; do
+  for n in ${PHONES:-100 250 500 1000 1500 2000}; do
+    rm -f "$work/db.sqlite"*
+    "$bin" serve --model "$model" --addr 127.0.0.1:0 --tokens "$work/tokens" --db "$work/db.sqlite" \
+      --max-sessions-per-token 100000 2> "$work/serve.log" &
+    server=$!
+    for _ in $(seq 600); do grep -q 'listening on' "$work/serve.log" && break; sleep 0.1; done
+    url="$(sed -n 's/^wipdr serve: listening on //p' "$work/serve.log" | head -1)"
+    rm -f "$work/run.json"
+    echo "== $scheme, $n phones, ${DURATION:-60} s"
+    "$bin" replay --server "$url" --token-file "$work/tokens" --phones "$n" --concurrency "$n" \
+      --speed 1 --batch-ms 1000 --duration-s "${DURATION:-60}" --scheme "$scheme" \
+      --json "$work/run.json" "${walks[@]}" || true
+    kill -TERM "$server"; wait "$server" || true; server=""
+    [ -f "$work/run.json" ] || { printf '%s\t%s\tno result (see above)\n' "$scheme" "$n" >> "$results"; continue; }
+    python3 - "$work/run.json" "$scheme" "$n" >> "$results" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+per = r.get("memory_bytes_per_session")
+print("\t".join([sys.argv[2], sys.argv[3], "%.2f" % r["latency_ms"]["p50"], "%.2f" % r["latency_ms"]["p99"],
+                 "%.2f" % r["latency_ms"]["max"], str(r["samples_sent"]), str(r["samples_accepted"]),
+                 "-" if per is None else "%.0f" % (per / 1e3)]))
+PY
+  done
+done
+echo
+column -t -s $'\t' "$results" 2>/dev/null || cat "$results"
