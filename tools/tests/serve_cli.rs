@@ -361,19 +361,47 @@ fn the_live_map_shows_the_replayed_phones_in_chromium() {
         .args(["replay", "--server", &server.url, "--token-file"])
         .arg(model().join("tokens"))
         .args([
+            // Nine walks one after the other at 20x real time: estimates keep coming for
+            // about 40 s, while the page is open, however long the browser takes to start.
             "--speed",
             "20",
+            "--concurrency",
+            "1",
             "--batch-ms",
             "500",
             "--scheme",
             "pmf",
             "--keep-open",
         ])
-        .arg(root().join("fixtures/sim/F1/path_data_files/sim_F1_w0001.txt.gz"))
+        .args((1..10).map(|i| {
+            root().join(format!(
+                "fixtures/sim/F1/path_data_files/sim_F1_w{i:04}.txt.gz"
+            ))
+        }))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
+    // The page lists the sessions open when it loads, and its live stream starts with each
+    // one's latest estimate: wait (bounded) until the live phone's session is open and has
+    // one, so the page's event count does not hang on when the next batch lands in the few
+    // real seconds a headless page with a virtual-time budget lives.
+    for _ in 0..240 {
+        let (_, body) = server.call("GET", "/v1/sessions", None);
+        let sessions: Value = serde_json::from_str(&body).unwrap_or(Value::Null);
+        let live_has_estimates = sessions["sessions"].as_array().is_some_and(|list| {
+            list.iter().any(|s| {
+                s["device"]
+                    .as_str()
+                    .is_some_and(|d| d.contains("sim_F1_w0001"))
+                    && s["recent"].as_array().is_some_and(|r| !r.is_empty())
+            })
+        });
+        if live_has_estimates {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(250));
+    }
     let profile = tempfile::tempdir().unwrap();
     let out = Command::new(&browser)
         .args([

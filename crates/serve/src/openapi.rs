@@ -128,8 +128,8 @@ pub fn document() -> Value {
             },
             "/v1/sessions/{id}/samples": { "post": post_samples },
             "/v1/sessions/{id}/track": { "get": track },
-            "/v1/sessions/{id}/events": { "get": session_op("The session's estimates, live (Server-Sent Events `estimate`, `closed`, `lagged`)", sse("event stream")) },
-            "/v1/live": { "get": secured(json!({ "summary": "Every open session of the token, live (Server-Sent Events)", "responses": { "200": sse("event stream") } })) }
+            "/v1/sessions/{id}/events": { "get": session_op("The session's estimates, live (Server-Sent Events `estimate`, `closed`, `lagged`), starting with its latest estimate", sse("event stream")) },
+            "/v1/live": { "get": secured(json!({ "summary": "Every open session of the token, live (Server-Sent Events), starting with each one's latest estimate", "responses": { "200": sse("event stream") } })) }
         }
     })
 }

@@ -30,6 +30,7 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
+use futures_util::StreamExt;
 use serde::Deserialize;
 use serde_json::{Value, json};
 use std::convert::Infallible;
@@ -596,12 +597,48 @@ async fn get_track(
 type EventStream =
     std::pin::Pin<Box<dyn futures_util::Stream<Item = Result<Event, Infallible>> + Send>>;
 
-/// The live events that pass `keep`, until the server stops.
+/// Each open session's latest estimate that `keep` lets through, as `estimate` events: a map
+/// opened in the middle of a walk shows where every phone is at once, not at its next batch.
+fn live_snapshot(state: &AppState, keep: &impl Fn(&LiveEvent) -> bool) -> Vec<Event> {
+    state
+        .registry
+        .all(None)
+        .iter()
+        .filter_map(|s| {
+            let s = sessions::lock(s);
+            let e = s.latest()?;
+            let ev = LiveEvent {
+                kind: "estimate",
+                session: s.record.id.clone(),
+                owner: s.record.owner,
+                device: s.record.device.clone(),
+                scheme: s.record.scheme.clone(),
+                estimate: Some(e),
+                r95_m: e.sd_m.map(radius_95),
+            };
+            keep(&ev).then(|| live_event(&ev))
+        })
+        .collect()
+}
+
+fn live_event(ev: &LiveEvent) -> Event {
+    let data = serde_json::to_string(ev).unwrap_or_default();
+    Event::default().event(ev.kind).data(data)
+}
+
+/// A live event stream: the snapshot of the open sessions' latest estimates, then every new
+/// event `keep` lets through, until the server stops. Subscribing before taking the snapshot
+/// means no estimate falls between the two (one may come twice: the map keeps the latest).
 fn live_stream(
     state: &Arc<AppState>,
     keep: impl Fn(&LiveEvent) -> bool + Send + 'static,
 ) -> Response {
     let rx = state.live.subscribe();
+    let snapshot = futures_util::stream::iter(
+        live_snapshot(state, &keep)
+            .into_iter()
+            .map(Ok::<_, Infallible>),
+    );
     let stopping = state.stopping.clone();
     let stream = futures_util::stream::unfold(
         (rx, stopping, keep),
@@ -618,9 +655,7 @@ fn live_stream(
                     }
                     r = rx.recv() => match r {
                         Ok(ev) if keep(&ev) => {
-                            let data = serde_json::to_string(&*ev).unwrap_or_default();
-                            let event = Event::default().event(ev.kind).data(data);
-                            return Some((Ok(event), (rx, stop, keep)));
+                            return Some((Ok(live_event(&ev)), (rx, stop, keep)));
                         }
                         Ok(_) => continue,
                         Err(broadcast::error::RecvError::Lagged(n)) => {
@@ -633,7 +668,7 @@ fn live_stream(
             }
         },
     );
-    Sse::new(Box::pin(stream) as EventStream)
+    Sse::new(Box::pin(snapshot.chain(stream)) as EventStream)
         .keep_alive(KeepAlive::default())
         .into_response()
 }

@@ -437,6 +437,74 @@ async fn the_live_stream_carries_a_sessions_estimates_to_its_owner_only() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_live_stream_opened_mid_walk_starts_with_each_open_sessions_latest_estimate() {
+    use http_body_util::BodyExt;
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(&dir.path().join("t.sqlite"), fast_config()).await;
+    let http = Http::new(server.addr);
+    let samples = fixture_samples();
+    let id = http.open(A, "ekf", "walking phone").await;
+    let quiet = http.open(A, "ekf", "no estimate yet").await;
+    // Estimates first, the map opened after.
+    let (s, v) = http.post(A, &id, &samples[..4000]).await;
+    assert_eq!(s, StatusCode::OK);
+    let latest = v["estimate"].clone();
+    assert!(latest.is_object(), "{v}");
+    let client: hyper_util::client::legacy::Client<_, http_body_util::Full<hyper::body::Bytes>> =
+        hyper_util::client::legacy::Client::builder(hyper_util::rt::TokioExecutor::new())
+            .build_http();
+    let sse = |token: &'static str| {
+        let req = hyper::Request::get(format!("http://{}/v1/live", server.addr))
+            .header("authorization", format!("Bearer {token}"))
+            .body(http_body_util::Full::default())
+            .unwrap();
+        client.request(req)
+    };
+    let live_a = sse(A).await.unwrap();
+    let live_b = sse(B).await.unwrap();
+    // The first event A's map reads is the walking phone where it is now, before any new
+    // batch; the session without an estimate sends nothing.
+    let mut body = live_a.into_body();
+    let mut text = String::new();
+    while !text.contains("\n\n") {
+        match tokio::time::timeout(Duration::from_secs(30), body.frame()).await {
+            Ok(Some(Ok(f))) => {
+                if let Some(d) = f.data_ref() {
+                    text.push_str(&String::from_utf8_lossy(d));
+                }
+            }
+            other => panic!("no snapshot event: {other:?} after {text:?}"),
+        }
+    }
+    let first = text.split("\n\n").next().unwrap();
+    assert!(first.contains("event: estimate"), "{first}");
+    let data: Value = serde_json::from_str(
+        first
+            .lines()
+            .find_map(|l| l.strip_prefix("data: "))
+            .expect("a data line"),
+    )
+    .unwrap();
+    assert_eq!(data["session"], id.as_str());
+    assert_eq!(data["device"], "walking phone");
+    assert_eq!(data["estimate"]["x"], latest["x"]);
+    assert_eq!(data["estimate"]["y"], latest["y"]);
+    assert!(!text.contains(&quiet), "{text}");
+    // B's map gets no snapshot of A's phones.
+    server.shutdown().await;
+    let text_b = String::from_utf8_lossy(
+        &live_b
+            .into_body()
+            .collect()
+            .await
+            .map(|b| b.to_bytes())
+            .unwrap_or_default(),
+    )
+    .into_owned();
+    assert!(!text_b.contains(&id), "{text_b}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn health_openapi_plan_and_page_are_served() {
     let dir = tempfile::tempdir().unwrap();
     let server = start(&dir.path().join("t.sqlite"), fast_config()).await;
