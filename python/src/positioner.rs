@@ -229,6 +229,7 @@ impl PySiteModel {
             geo_frame: None,
             floors,
             floor_heights_m: Vec::new(),
+            leave_one_out: None,
         };
         let model = SiteModel::from_data(data, None)
             .map_err(|e| input_error(format!("SiteModel.from_records: {e}")))?;

@@ -15,6 +15,7 @@ mod eval_plots;
 mod plotting;
 mod progress;
 mod report;
+mod survey_plot;
 
 /// Indoor positioning by Wi-Fi fingerprinting fused with pedestrian dead reckoning.
 #[derive(Debug, Parser)]

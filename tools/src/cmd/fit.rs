@@ -13,6 +13,11 @@
 //! with. `--leave-out-fold-of WALK` fits on the training folds of that walk's protocol fold
 //! instead (what `wipdr eval` does for it: the model then positions that walk exactly as
 //! the evaluation does).
+//!
+//! The fit also measures the Wi-Fi error of every training scan with its walk left out of
+//! the radio map (`leave_one_walk_out`: the radio map and matcher fit again without each
+//! walk, in parallel) and saves it in the model for `wipdr inspect MODEL --plot`;
+//! `--no-leave-one-out` skips it.
 
 use crate::cmd::eval::load_config;
 use crate::data;
@@ -22,7 +27,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::Walk;
 use wipdr_eval::fold::folds_of;
-use wipdr_positioning::site_model::{SiteModel, SourceFile, TrainingData};
+use wipdr_positioning::site_model::{SiteModel, SourceFile, TrainingData, leave_one_walk_out};
 
 /// Arguments of `wipdr fit`.
 #[derive(Debug, clap::Args)]
@@ -41,6 +46,10 @@ pub struct Args {
     /// it), instead of on every walk.
     #[arg(long, value_name = "WALK_ID")]
     pub leave_out_fold_of: Option<String>,
+    /// Do not measure the leave-one-walk-out Wi-Fi errors (survey guidance of
+    /// `wipdr inspect --plot`); the model positions exactly the same either way.
+    #[arg(long)]
+    pub no_leave_one_out: bool,
 }
 
 /// Runs the subcommand.
@@ -94,8 +103,25 @@ pub fn run(args: Args) -> Result<()> {
         plan: Some(&floor.data.plan),
         geo_frame: floor.data.geo_frame,
     };
-    let mut model = SiteModel::fit(&data, &cfg.site_config())
+    let site_config = cfg.site_config();
+    let mut model = SiteModel::fit(&data, &site_config)
         .with_context(|| format!("fitting {}", args.data.display()))?;
+    let fitted_s = started.elapsed().as_secs_f64();
+    if !args.no_leave_one_out {
+        let t0 = Instant::now();
+        let loo = leave_one_walk_out(&data, &site_config)
+            .with_context(|| format!("leave-one-walk-out errors of {}", args.data.display()))?;
+        eprintln!(
+            "leave-one-walk-out Wi-Fi errors: {} walks ({} skipped), {} scans located ({} unmatched), {} kept, in {:.1} s",
+            loo.walks,
+            loo.skipped_walks,
+            loo.scans,
+            loo.unmatched_scans,
+            loo.points.len(),
+            t0.elapsed().as_secs_f64()
+        );
+        model.set_leave_one_out(Some(loo))?;
+    }
     let sources = source_files(&args.data)?;
     let mut all = Sha256::new();
     for s in &sources {
@@ -114,7 +140,7 @@ pub fn run(args: Args) -> Result<()> {
     let bytes = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
     let p = &model.data().provenance;
     eprintln!(
-        "{}: {} training walks, {} reference points, {} APs, floors {:?} -> {} ({:.1} MB) in {:.1} s",
+        "{}: {} training walks, {} reference points, {} APs, floors {:?} -> {} ({:.1} MB) in {:.1} s (read and fit {:.1} s)",
         floor.label,
         p.training_walks,
         p.reference_points,
@@ -122,7 +148,8 @@ pub fn run(args: Args) -> Result<()> {
         model.data().floors,
         args.out.display(),
         bytes as f64 / 1e6,
-        started.elapsed().as_secs_f64()
+        started.elapsed().as_secs_f64(),
+        fitted_s
     );
     Ok(())
 }

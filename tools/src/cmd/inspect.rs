@@ -23,6 +23,15 @@ pub struct Args {
     /// Resource limits as a TOML file (fields of `wipdr_io::Limits`; missing ones default).
     #[arg(long)]
     pub limits: Option<PathBuf>,
+    /// For a site model: draw where it is weak to this PNG, one row per floor (expected
+    /// Wi-Fi error from the leave-one-walk-out errors `wipdr fit` saved, distance to the
+    /// nearest reference point, APs heard there).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
+    /// For a site model: the distance (metres) beyond which a place counts as a coverage
+    /// gap in the summary (and the top of the distance colour bar is twice it).
+    #[arg(long, default_value_t = 10.0, value_name = "M")]
+    pub gap_m: f64,
 }
 
 /// Runs the subcommand.
@@ -37,12 +46,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             anyhow::bail!("{}: {field}: {reason}", path.display());
         }
     }
+    if !(args.gap_m.is_finite() && args.gap_m > 0.0) {
+        anyhow::bail!("--gap-m {}: give a distance > 0 m", args.gap_m);
+    }
+    if args.plot.is_some() && !args.paths.iter().any(|p| is_site_model(p)) {
+        anyhow::bail!("--plot draws a site model: give a model file (`wipdr fit` makes one)");
+    }
+    if args.plot.is_some() && args.paths.len() > 1 {
+        anyhow::bail!("--plot draws one site model: give one path");
+    }
     let started = Instant::now();
     for path in &args.paths {
         if path.is_dir() {
             inspect_floor(path, &args, &options)?;
         } else if is_site_model(path) {
-            inspect_model(path)?;
+            inspect_model(path, &args)?;
         } else {
             inspect_walk(path, &options)?;
         }
@@ -74,7 +92,7 @@ fn is_site_model(path: &Path) -> bool {
 }
 
 /// Prints what a site model holds: floors, reference points, APs, config, provenance.
-fn inspect_model(path: &Path) -> anyhow::Result<()> {
+fn inspect_model(path: &Path, args: &Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let model = wipdr_positioning::SiteModel::load(path)?;
     let elapsed = t0.elapsed().as_secs_f64();
@@ -190,6 +208,111 @@ fn inspect_model(path: &Path) -> anyhow::Result<()> {
     if !d.schemes.is_empty() {
         let names: Vec<&String> = d.schemes.keys().collect();
         println!("  scheme settings: {names:?}");
+    }
+    survey_guidance(path, &model, args)
+}
+
+/// Prints where the model is weak per floor (leave-one-walk-out Wi-Fi error, area far from
+/// any reference point) and draws it with `--plot`.
+fn survey_guidance(
+    path: &Path,
+    model: &wipdr_positioning::SiteModel,
+    args: &Args,
+) -> anyhow::Result<()> {
+    use wipdr_core::stats::percentile_sorted;
+    use wipdr_positioning::site_model::{SurveySettings, floor_survey, survey_floors};
+    let d = model.data();
+    let settings = SurveySettings::default();
+    let surveys = survey_floors(model)
+        .into_iter()
+        .map(|f| floor_survey(model, f, &settings))
+        .collect::<Result<Vec<_>, _>>()
+        .with_context(|| format!("survey guidance of {}", path.display()))?;
+    match &d.leave_one_out {
+        Some(l) => println!(
+            "  survey guidance: leave-one-walk-out Wi-Fi errors of {} scans ({} kept) in {} walks ({} skipped, {} scans unmatched); gaps: farther than {} m from any measured reference point",
+            l.scans,
+            l.points.len(),
+            l.walks,
+            l.skipped_walks,
+            l.unmatched_scans,
+            args.gap_m
+        ),
+        None => println!(
+            "  survey guidance: no leave-one-walk-out errors in this model (`wipdr fit` measures them unless --no-leave-one-out); gaps: farther than {} m from any measured reference point",
+            args.gap_m
+        ),
+    }
+    for s in &surveys {
+        let floor = s
+            .floor
+            .map_or("the floor".to_string(), |f| format!("floor {f}"));
+        let errors = d
+            .leave_one_out
+            .as_ref()
+            .map(|l| l.sorted_errors(s.floor))
+            .unwrap_or_default();
+        let error = if errors.is_empty() {
+            "no leave-one-out error".to_string()
+        } else {
+            format!(
+                "Wi-Fi error median {:.1} m, p90 {:.1} m ({} scans)",
+                percentile_sorted(&errors, 50.0),
+                percentile_sorted(&errors, 90.0),
+                errors.len()
+            )
+        };
+        let (share, area) = s.farther_than(args.gap_m);
+        println!(
+            "    {floor}: {error}; {} reference points; {area:.0} m² ({:.0} % of the floor) farther than {} m",
+            s.reference_points.len(),
+            100.0 * share,
+            args.gap_m
+        );
+    }
+    if let Some(out) = &args.plot {
+        let all_errors = d
+            .leave_one_out
+            .as_ref()
+            .map(|l| l.sorted_errors(None))
+            .unwrap_or_default();
+        // The error scale ends at the 95th percentile (rounded up to a metre, at least 5):
+        // a few gross errors would otherwise wash every other cell out green.
+        let error_top = if all_errors.is_empty() {
+            5.0
+        } else {
+            percentile_sorted(&all_errors, 95.0).ceil().max(5.0)
+        };
+        let most_aps = surveys
+            .iter()
+            .flat_map(|s| s.aps_heard.iter().flatten())
+            .copied()
+            .max()
+            .unwrap_or(1)
+            .max(1);
+        let scales = crate::survey_plot::Scales {
+            error: crate::survey_plot::Scale {
+                lo: 0.0,
+                hi: error_top,
+                good_high: false,
+            },
+            distance: crate::survey_plot::Scale {
+                lo: 0.0,
+                hi: 2.0 * args.gap_m,
+                good_high: false,
+            },
+            aps: crate::survey_plot::Scale {
+                lo: 0.0,
+                hi: f64::from(most_aps),
+                good_high: true,
+            },
+        };
+        let title = format!(
+            "{}: where to survey next (red: large expected error, far from data, few APs; grey: no leave-one-out scan within {} m)",
+            d.name, settings.error_radius_m
+        );
+        let (w, h) = crate::survey_plot::draw(out, &title, &surveys, d.plan.as_ref(), scales)?;
+        println!("  wrote {} ({w} x {h} px)", out.display());
     }
     Ok(())
 }
@@ -512,6 +635,8 @@ mod tests {
             paths,
             brief: false,
             limits: None,
+            plot: None,
+            gap_m: 10.0,
         };
         crate::data::set_cache(wipdr_io::cache::CacheSettings::in_dir(
             tmp.path().join("cache"),

@@ -18,7 +18,8 @@
 //! than a megabyte on a length it reads), so a header or payload announcing 10^12 entries
 //! fails without allocating them; the radio map's dense table is allocated only after its
 //! shape is checked against [`MAX_MAP_CELLS`]; the decoded model is checked
-//! ([`wipdr_fingerprint::RadioMap::check_consistent`], the config's validation) before use.
+//! ([`wipdr_fingerprint::RadioMap::check_consistent`], the config's validation, the
+//! leave-one-out errors' [`super::LeaveOneOut::validate`]) before use.
 //! Every failure is a [`SiteModelFileError`] naming the file and what differs.
 
 use super::{SiteModel, SiteModelData, SiteModelError};
@@ -31,8 +32,10 @@ use wipdr_fingerprint::radio_map::SparseCell;
 /// The file's first eight bytes.
 pub const MAGIC: &[u8; 8] = b"WIPDRSM\0";
 /// Bumped whenever the saved types or the layout change; a file of another version is
-/// refused (fit the site again).
-pub const FORMAT_VERSION: u32 = 2;
+/// refused with [`SiteModelFileError::Version`] (fit the site again). Version 3 added the
+/// leave-one-walk-out Wi-Fi errors ([`super::LeaveOneOut`], optional within the version: a
+/// model fit without them saves `None`).
+pub const FORMAT_VERSION: u32 = 3;
 /// Bytes of the fixed header: magic, version, payload length, payload CRC, header CRC.
 pub const HEADER_BYTES: usize = 8 + 4 + 8 + 4 + 4;
 /// Largest model file read: 2 GiB (the five ILC floors as one model take a few tens of MB).
@@ -151,6 +154,7 @@ struct Payload {
     floors: Vec<i32>,
     floor_heights_m: Vec<f64>,
     provenance: super::Provenance,
+    leave_one_out: Option<super::LeaveOneOut>,
 }
 
 /// The settings part of the payload.
@@ -216,6 +220,7 @@ impl SiteModel {
             floors: d.floors.clone(),
             floor_heights_m: d.floor_heights_m.clone(),
             provenance: d.provenance.clone(),
+            leave_one_out: d.leave_one_out.clone(),
         };
         let body = bincode::serde::encode_to_vec(&payload, codec_config())
             .map_err(|e| codec(format!("encoding: {e}")))?;
@@ -323,6 +328,7 @@ impl SiteModel {
             floors: payload.floors,
             floor_heights_m: payload.floor_heights_m,
             provenance: payload.provenance,
+            leave_one_out: payload.leave_one_out,
         };
         SiteModel::from_data(data, None).map_err(|e| match e {
             SiteModelError::File(f) => f,

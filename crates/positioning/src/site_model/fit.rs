@@ -114,13 +114,15 @@ pub struct TrainingData<'a> {
 }
 
 /// The radio map's measured fingerprints and the extended map: what [`fit_radio_map`] learns.
-struct LearnedMap {
-    map: RadioMap,
+pub(super) struct LearnedMap {
+    pub(super) map: RadioMap,
     measured: Vec<MeasuredPoint>,
     extended: bool,
 }
 
-fn fit_radio_map(
+/// The radio map of `data` under `fit`: from the walks or the survey table, interpolated,
+/// extended by path-loss models.
+pub(super) fn fit_radio_map(
     data: &TrainingData<'_>,
     fit: &SiteFitConfig,
 ) -> Result<LearnedMap, SiteModelError> {
@@ -262,6 +264,7 @@ impl SiteModel {
             floors,
             floor_heights_m,
             provenance,
+            leave_one_out: None,
         };
         SiteModel::from_data(model_data, plan_site)
     }

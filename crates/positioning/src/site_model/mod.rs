@@ -51,6 +51,7 @@ mod file;
 mod fit;
 mod pressure;
 mod provenance;
+mod survey;
 
 pub use coverage::{MeasuredPoint, coverage_distance, measured_points};
 pub use file::{
@@ -62,6 +63,10 @@ pub use pressure::{
     floor_heights, pressure_references,
 };
 pub use provenance::{Provenance, SourceFile};
+pub use survey::{
+    FloorSurvey, LeaveOneOut, LeaveOutPoint, MAX_LEAVE_OUT_POINTS, SurveySettings, floor_survey,
+    leave_one_walk_out, survey_floors,
+};
 
 use crate::{
     Positioner, PositionerConfig, PositioningError, PressureReference, Site, StreamIdentity,
@@ -106,6 +111,10 @@ pub enum SiteModelError {
     /// A model file could not be read or written.
     #[error(transparent)]
     File(#[from] SiteModelFileError),
+    /// The survey guidance could not be made (a bad setting, a raster over its limit) or its
+    /// saved leave-one-out errors are invalid.
+    #[error("survey guidance: {0}")]
+    Survey(String),
 }
 
 /// What a site model saves: the learned data and its settings. [`SiteModel`] adds what is
@@ -145,6 +154,11 @@ pub struct SiteModelData {
     pub floor_heights_m: Vec<f64>,
     /// Where the model came from.
     pub provenance: Provenance,
+    /// The Wi-Fi errors of the training scans with their walk left out of the radio map
+    /// ([`leave_one_walk_out`]), for survey guidance (`wipdr inspect --plot`); `None`: not
+    /// measured (a model fit in code or by the evaluation, `wipdr fit --no-leave-one-out`).
+    /// Never read by the positioner.
+    pub leave_one_out: Option<LeaveOneOut>,
 }
 
 /// A fitted site; see the [module docs](self).
@@ -174,6 +188,10 @@ impl SiteModel {
     pub fn from_data(data: SiteModelData, plan_site: Option<Site>) -> Result<Self, SiteModelError> {
         data.radio_map.check_consistent()?;
         data.config.validate()?;
+        if let Some(loo) = &data.leave_one_out {
+            loo.validate()
+                .map_err(|e| SiteModelError::Survey(format!("leave-one-out errors: {e}")))?;
+        }
         for (name, scheme) in &data.schemes {
             scheme
                 .validate()
@@ -218,6 +236,18 @@ impl SiteModel {
     /// after fitting.
     pub fn provenance_mut(&mut self) -> &mut Provenance {
         &mut self.data.provenance
+    }
+
+    /// Sets the leave-one-walk-out Wi-Fi errors ([`leave_one_walk_out`] on the data the
+    /// model was fit on); they change no estimate. Errors when they are invalid
+    /// ([`LeaveOneOut::validate`]).
+    pub fn set_leave_one_out(&mut self, loo: Option<LeaveOneOut>) -> Result<(), SiteModelError> {
+        if let Some(l) = &loo {
+            l.validate()
+                .map_err(|e| SiteModelError::Survey(format!("leave-one-out errors: {e}")))?;
+        }
+        self.data.leave_one_out = loo;
+        Ok(())
     }
 
     /// The site's display name.
