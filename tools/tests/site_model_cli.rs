@@ -109,6 +109,9 @@ fn check_fit_locate_equals_eval(data: &Path, walk_file: &Path, schemes: &[String
             data_arg,
             "--leave-out-fold-of",
             &id,
+            // The leave-one-out errors change no estimate (checked below by
+            // `inspect_plots_where_the_model_is_weak`); not measuring them keeps this fast.
+            "--no-leave-one-out",
             "--out",
             model.to_str().unwrap(),
         ],
@@ -340,4 +343,115 @@ fn locate_refuses_a_file_that_is_not_a_model() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
+}
+
+/// The width and height a PNG file's header states (its IHDR chunk), after checking the
+/// signature.
+fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap();
+    assert!(
+        bytes.len() > 24,
+        "{} is too short for a PNG",
+        path.display()
+    );
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "not a PNG");
+    assert_eq!(&bytes[12..16], b"IHDR");
+    let be = |i: usize| u32::from_be_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    (be(16), be(20))
+}
+
+/// `wipdr fit` saves the leave-one-walk-out Wi-Fi errors of the training scans (finite,
+/// plausible for the fixture floor); `wipdr inspect --plot` prints the per-floor summary
+/// and draws a PNG of the size it states; a model fit with `--no-leave-one-out` still
+/// plots (distance and APs) and says why the error is missing.
+#[test]
+fn inspect_plots_where_the_model_is_weak() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = fixture_dir();
+    let model = tmp.path().join("f1.wipdr");
+    let m = model.to_str().unwrap();
+    wipdr(
+        &[
+            "--no-cache",
+            "fit",
+            "--data",
+            dir.to_str().unwrap(),
+            "--out",
+            m,
+        ],
+        tmp.path(),
+    );
+    let loaded = wipdr_positioning::SiteModel::load(&model).unwrap();
+    let d = loaded.data();
+    let loo = d.leave_one_out.as_ref().expect("wipdr fit measures them");
+    assert_eq!(
+        loo.walks + loo.skipped_walks,
+        d.provenance.training_walks,
+        "every training walk left out once"
+    );
+    assert_eq!(loo.skipped_walks, 0);
+    assert_eq!(loo.points.len(), loo.scans, "no thinning on the fixture");
+    assert!(loo.scans * 10 >= d.provenance.scans * 9, "{loo:?}");
+    let mut errors: Vec<f64> = loo.points.iter().map(|p| p.error_m).collect();
+    assert!(errors.iter().all(|e| e.is_finite() && *e >= 0.0));
+    errors.sort_by(f64::total_cmp);
+    // The fixture floor is 120 m x 80 m, walked by 10 walks over three routes: a scan is
+    // located metres off by the other walks' map, never across the floor.
+    let median = errors[errors.len() / 2];
+    assert!(median > 0.1 && median < 15.0, "median {median} m");
+    assert!(errors[errors.len() - 1] < 144.0, "{errors:?}");
+    for p in &loo.points {
+        assert!(
+            (-1.0..=121.0).contains(&p.position.x) && (-1.0..=81.0).contains(&p.position.y),
+            "{p:?}"
+        );
+    }
+
+    let png = tmp.path().join("plots").join("coverage.png");
+    let out = wipdr(&["inspect", m, "--plot", png.to_str().unwrap()], tmp.path());
+    assert!(out.contains("Wi-Fi error median"), "{out}");
+    assert!(out.contains("farther than 10 m"), "{out}");
+    let stated = format!("wrote {}", png.display());
+    let line = out
+        .lines()
+        .find(|l| l.contains(&stated))
+        .unwrap_or_else(|| panic!("{out}"));
+    let (w, h) = png_size(&png);
+    assert!(line.ends_with(&format!("({w} x {h} px)")), "{line}");
+    assert!(w >= 1000 && h >= 250, "{w} x {h}");
+
+    // Without the leave-one-out errors: the other panels, and the summary says why.
+    let bare = tmp.path().join("bare.wipdr");
+    wipdr(
+        &[
+            "--no-cache",
+            "fit",
+            "--data",
+            dir.to_str().unwrap(),
+            "--no-leave-one-out",
+            "--out",
+            bare.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    let bare_model = wipdr_positioning::SiteModel::load(&bare).unwrap();
+    assert!(bare_model.data().leave_one_out.is_none());
+    // The errors change no estimate: the models differ only there (and in the fit time).
+    let mut with = d.clone();
+    with.leave_one_out = None;
+    with.provenance.created_unix_s = bare_model.data().provenance.created_unix_s;
+    with.provenance.sources = bare_model.data().provenance.sources.clone();
+    assert_eq!(&with, bare_model.data());
+    let png2 = tmp.path().join("bare.png");
+    let out = wipdr(
+        &[
+            "inspect",
+            bare.to_str().unwrap(),
+            "--plot",
+            png2.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    assert!(out.contains("no leave-one-walk-out errors"), "{out}");
+    assert_eq!(png_size(&png2), (w, h));
 }

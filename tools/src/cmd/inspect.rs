@@ -276,12 +276,15 @@ fn survey_guidance(
             .as_ref()
             .map(|l| l.sorted_errors(None))
             .unwrap_or_default();
-        // The error scale ends at the 95th percentile (rounded up to a metre, at least 5):
-        // a few gross errors would otherwise wash every other cell out green.
+        // The error scale ends at the 90th percentile (rounded up to a metre, at least 5 m):
+        // the worst tenth of the scans then reads red, and a few gross errors do not wash
+        // every other cell out green (on `fixtures/sim/F1` the 95th percentile is about
+        // 35 m, the 90th 14 m, the median 5 m: `wipdr inspect f1.wipdr` after
+        // `wipdr fit --data fixtures/sim/F1 --out f1.wipdr`).
         let error_top = if all_errors.is_empty() {
             5.0
         } else {
-            percentile_sorted(&all_errors, 95.0).ceil().max(5.0)
+            percentile_sorted(&all_errors, 90.0).ceil().max(5.0)
         };
         let most_aps = surveys
             .iter()
