@@ -77,7 +77,7 @@ impl PySiteModel {
             .map_err(|e| eval_error(&e))?;
         Ok(Self {
             model,
-            calibrated: cfg.calibrate_pdr,
+            calibrated: cfg.fit.calibrate_pdr,
         })
     }
 }
@@ -205,7 +205,7 @@ impl PySiteModel {
                 .collect();
             records.push((point, heard));
         }
-        let map = RadioMap::from_records(records, cfg.radio_map.radio)
+        let map = RadioMap::from_records(records, cfg.fit.radio_map.radio)
             .map_err(|e| input_error(format!("SiteModel.from_records: {e}")))?;
         let plan = crate::floor::plan_around(map.points().iter().map(|p| p.position))?;
         let site = cfg.site_config();
@@ -417,10 +417,10 @@ impl PyPositioner {
                 let pdr = if model.calibrated {
                     site_model.config().pdr
                 } else {
-                    cfg.pdr
+                    cfg.positioner.pdr
                 };
-                let mut pcfg = cfg.positioner(scheme_cfg, pdr);
-                pcfg.seed = stream_seed(cfg.seed, stream_id);
+                let mut pcfg = cfg.positioner_for(scheme_cfg, pdr);
+                pcfg.seed = stream_seed(cfg.positioner.seed, stream_id);
                 pcfg.floor.fixes_across_floors = Some(
                     pcfg.floor
                         .fixes_across_floors

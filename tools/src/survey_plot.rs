@@ -5,7 +5,8 @@
 //! reference point, and the APs heard at that reference point. Every panel shares one
 //! colour convention: red is where more survey data would help (large error, far from
 //! data, few APs), green where the model is strong; grey is no data (no leave-one-out scan
-//! within the interpolation radius); white lies outside the floor outline.
+//! within the interpolation radius, no reference point within the gap distance for the APs);
+//! white lies outside the floor outline.
 
 use crate::plotting::{self, FONT_FAMILY, FloorChart};
 use anyhow::{Context, Result, anyhow};
@@ -99,13 +100,15 @@ fn row_height(s: &FloorSurvey) -> u32 {
     (chart_w * aspect + 80.0).clamp(250.0, 900.0) as u32
 }
 
-/// Draws the survey figure of `surveys` (one row per floor) to `out` (PNG).
+/// Draws the survey figure of `surveys` (one row per floor) to `out` (PNG); the APs heard
+/// are shown only within `gap_m` of their reference point.
 pub fn draw(
     out: &Path,
     title: &str,
     surveys: &[FloorSurvey],
     plan: Option<&FloorPlan>,
     scales: Scales,
+    gap_m: f64,
 ) -> Result<(u32, u32)> {
     plotting::ensure_parent(out)?;
     plotting::init_fonts();
@@ -143,7 +146,17 @@ pub fn draw(
             Layer {
                 title: format!("{floor}APs heard (nearest reference point)"),
                 unit: "APs",
-                values: s.aps_heard.iter().map(|a| a.map(f64::from)).collect(),
+                // Beyond the gap distance the nearest reference point says nothing of the
+                // place: grey, as the error panel's blanks.
+                values: s
+                    .aps_heard
+                    .iter()
+                    .zip(&s.distance_m)
+                    .map(|(a, d)| match (a, d) {
+                        (Some(a), Some(d)) if *d <= gap_m => Some(f64::from(*a)),
+                        _ => None,
+                    })
+                    .collect(),
                 scale: scales.aps,
                 survey: s,
             },

@@ -19,53 +19,33 @@ use wipdr_positioning::{FloorConfig, PositionerConfig};
 /// [`EvalConfig::from_toml`]: a partial section merges onto these defaults (not onto its
 /// type's own), unknown fields are errors naming their path. The sweep tool addresses its
 /// fields by dotted path (`radio_map.max_entry_age_ms`, `matcher.k`, `schemes.ekf.r_wifi`).
+///
+/// The positioner's settings live in one [`PositionerConfig`] and the site model's fit
+/// settings in one [`SiteFitConfig`]; the evaluation adds only the protocol's own (the scheme
+/// table, scoring, offline mode). In TOML (and JSON) the layout is flat, as it always was:
+/// the positioner's and the fit's sections and keys are top-level (`[matcher]`, `[pdr]`,
+/// `seed`, `[radio_map]`, `propagation`, ...; the file layout is `EvalConfigFile`, converted
+/// field by field, so that a field added to either config must be given a key there).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(from = "EvalConfigFile", into = "EvalConfigFile")]
 pub struct EvalConfig {
-    /// How training walks become a radio map ([`WalkMapConfig`]).
-    pub radio_map: WalkMapConfig,
-    /// The matcher ([`MatcherConfig`]: `kind = "wknn" | "apc" | "apindex" | "med"`, each
-    /// with its own fields). Default: shared-AP WKNN, k = 5.
-    pub matcher: MatcherConfig,
-    /// Online filtering of test scans ([`QueryFilter`]). Default: entries older than 5 s
-    /// dropped (the radio map's own staleness limit).
-    pub query: QueryFilter,
-    /// The PDR pipeline before calibration ([`PdrConfig`]).
-    pub pdr: PdrConfig,
-    /// Whether step length (and heading offset) are fitted on each fold's training walks.
-    pub calibrate_pdr: bool,
-    /// How the calibration fits ([`CalibrationConfig`]).
-    pub calibration: CalibrationConfig,
-    /// Score only waypoints after the walk's first Wi-Fi scan, for every scheme (as the
-    /// reference pipeline does); earlier ones are counted as skipped.
-    pub score_from_first_scan: bool,
-    /// Seed of the random schemes (mixed with each walk's id,
-    /// [`wipdr_positioning::stream_seed`]).
-    pub seed: u64,
+    /// The positioner every run uses: matcher, query filter, the PDR before calibration, map
+    /// matching, static start, floor estimate, seed (mixed with each walk's id,
+    /// [`wipdr_positioning::stream_seed`]). Its `scheme` is not read: each run names its
+    /// scheme, configured in [`EvalConfig::schemes`].
+    pub positioner: PositionerConfig,
+    /// How each fold's site model is learned: radio map, path-loss extension, PDR
+    /// calibration.
+    pub fit: SiteFitConfig,
     /// Scheme configs by name ([`SchemeConfig`]); a scheme not listed runs with its
     /// defaults.
     pub schemes: BTreeMap<String, SchemeConfig>,
-    /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
-    /// §4; [`wipdr_fusion::MapMatched`]): causal, from the plan alone.
-    pub map_matching: bool,
-    /// Start every scheme from the robust average of the fixes taken before the first step
-    /// (paper 001 §3.2; [`StaticStartConfig`]); `None`: off.
-    pub static_start: Option<StaticStartConfig>,
+    /// Score only waypoints after the walk's first Wi-Fi scan, for every scheme (as the
+    /// reference pipeline does); earlier ones are counted as skipped.
+    pub score_from_first_scan: bool,
     /// Score only waypoints within this many metres of path from the walk's first waypoint;
     /// `None`: the whole walk.
     pub score_first_m: Option<f64>,
-    /// Extend each fold's radio map into its coverage gaps with per-AP path-loss models
-    /// fitted on the training fingerprints ([`PropagationConfig`]; synthesised points only
-    /// where the floor plan is walkable); `None` (default): off. The synthesised points do
-    /// not count as coverage for `pmf`'s gap awareness unless `propagation_is_coverage`.
-    /// In TOML, `"off"` stands for `None` ([`wipdr_core::off`]).
-    #[serde(with = "wipdr_core::off")]
-    pub propagation: Option<PropagationConfig>,
-    /// Count the synthesised points of `propagation` as coverage.
-    pub propagation_is_coverage: bool,
-    /// The floor estimate from Wi-Fi and the barometer ([`FloorConfig`]), used where the
-    /// radio map has floors (IPIN logfiles; ILC floors evaluated as one building).
-    pub floor: FloorConfig,
     /// Offline mode (`wipdr eval --offline`): every scheme but the `pdr` baseline is scored
     /// on its whole-walk smoothed track ([`wipdr_positioning::smooth::smooth_fusion`]: the
     /// scheme run forward and on the reversed walk, combined), which uses inputs after each
@@ -73,35 +53,184 @@ pub struct EvalConfig {
     pub offline: bool,
 }
 
+/// The scheme of [`EvalConfig::positioner`], which no run reads (each names its own): one
+/// fixed value, so that a config read back from its TOML equals itself.
+fn unread_scheme() -> SchemeConfig {
+    SchemeConfig::Ekf(wipdr_fusion::EkfConfig::default())
+}
+
+/// The file layout of [`EvalConfig`] (TOML and JSON): the positioner's and the fit's fields
+/// as top-level keys, as before they were grouped.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct EvalConfigFile {
+    /// How training walks become a radio map ([`WalkMapConfig`]).
+    radio_map: WalkMapConfig,
+    /// The matcher ([`MatcherConfig`]: `kind = "wknn" | "apc" | "apindex" | "med"`, each
+    /// with its own fields).
+    matcher: MatcherConfig,
+    /// Online filtering of test scans ([`QueryFilter`]).
+    query: QueryFilter,
+    /// The PDR pipeline before calibration ([`PdrConfig`]).
+    pdr: PdrConfig,
+    /// Whether step length (and heading offset) are fitted on each fold's training walks.
+    calibrate_pdr: bool,
+    /// How the calibration fits ([`CalibrationConfig`]).
+    calibration: CalibrationConfig,
+    /// [`EvalConfig::score_from_first_scan`].
+    score_from_first_scan: bool,
+    /// Seed of the random schemes.
+    seed: u64,
+    /// [`EvalConfig::schemes`].
+    schemes: BTreeMap<String, SchemeConfig>,
+    /// Map-match every scheme's estimates onto the floor plan's walkable space (paper 004
+    /// §4; [`wipdr_fusion::MapMatched`]).
+    map_matching: bool,
+    /// The static start ([`StaticStartConfig`]); `None`: off.
+    static_start: Option<StaticStartConfig>,
+    /// [`EvalConfig::score_first_m`].
+    score_first_m: Option<f64>,
+    /// The path-loss extension ([`PropagationConfig`]); `None`: off. In TOML, `"off"`
+    /// stands for `None` ([`wipdr_core::off`]).
+    #[serde(with = "wipdr_core::off")]
+    propagation: Option<PropagationConfig>,
+    /// Count the synthesised points of `propagation` as coverage.
+    propagation_is_coverage: bool,
+    /// The floor estimate ([`FloorConfig`]).
+    floor: FloorConfig,
+    /// [`EvalConfig::offline`].
+    offline: bool,
+}
+
+impl Default for EvalConfigFile {
+    fn default() -> Self {
+        EvalConfig::default().into()
+    }
+}
+
+impl From<EvalConfigFile> for EvalConfig {
+    fn from(f: EvalConfigFile) -> Self {
+        let EvalConfigFile {
+            radio_map,
+            matcher,
+            query,
+            pdr,
+            calibrate_pdr,
+            calibration,
+            score_from_first_scan,
+            seed,
+            schemes,
+            map_matching,
+            static_start,
+            score_first_m,
+            propagation,
+            propagation_is_coverage,
+            floor,
+            offline,
+        } = f;
+        Self {
+            positioner: PositionerConfig {
+                matcher,
+                query,
+                pdr,
+                scheme: unread_scheme(),
+                map_matching,
+                static_start,
+                floor,
+                seed,
+            },
+            fit: SiteFitConfig {
+                radio_map,
+                propagation,
+                propagation_is_coverage,
+                calibrate_pdr,
+                calibration,
+            },
+            schemes,
+            score_from_first_scan,
+            score_first_m,
+            offline,
+        }
+    }
+}
+
+impl From<EvalConfig> for EvalConfigFile {
+    fn from(c: EvalConfig) -> Self {
+        let EvalConfig {
+            positioner:
+                PositionerConfig {
+                    matcher,
+                    query,
+                    pdr,
+                    scheme: _,
+                    map_matching,
+                    static_start,
+                    floor,
+                    seed,
+                },
+            fit:
+                SiteFitConfig {
+                    radio_map,
+                    propagation,
+                    propagation_is_coverage,
+                    calibrate_pdr,
+                    calibration,
+                },
+            schemes,
+            score_from_first_scan,
+            score_first_m,
+            offline,
+        } = c;
+        Self {
+            radio_map,
+            matcher,
+            query,
+            pdr,
+            calibrate_pdr,
+            calibration,
+            score_from_first_scan,
+            seed,
+            schemes,
+            map_matching,
+            static_start,
+            score_first_m,
+            propagation,
+            propagation_is_coverage,
+            floor,
+            offline,
+        }
+    }
+}
+
 impl Default for EvalConfig {
     /// The best measured configuration (was `docs/configs/best.toml`; figures in
     /// `docs/results/accuracy.md`): [`PositionerConfig::default`] (AP-matching index top 4,
-    /// map matching), the radio map interpolated along the training walks (1 m) and onto a
-    /// 3 m lattice (Gaussian kernel, sigma 3 m, radius 6 m), and the path-loss extension
-    /// into coverage gaps down to -85 dBm. [`EvalConfig::paper`] has the papers' settings;
-    /// `preset = "paper"` in a config file merges onto them instead.
+    /// map matching) with heading snapping on, and [`SiteFitConfig::default`] (the radio map
+    /// interpolated along the training walks (1 m) and onto a 3 m lattice, the path-loss
+    /// extension into coverage gaps down to -85 dBm). [`EvalConfig::paper`] has the papers'
+    /// settings; `preset = "paper"` in a config file merges onto them instead.
     fn default() -> Self {
         let positioner = PositionerConfig::default();
-        // How a site is learned: the one default of `SiteFitConfig` (the interpolated map,
-        // the path-loss extension).
-        let fit = SiteFitConfig::default();
         Self {
-            radio_map: fit.radio_map,
-            matcher: positioner.matcher,
-            map_matching: positioner.map_matching,
-            // the handling gate on (the papers' preset has none), heading snapping on (its
-            // grid orientation learned from the training legs by `calibrate_pdr`)
-            pdr: wipdr_pdr::PdrConfig {
-                heading: wipdr_pdr::pipeline::HeadingConfig {
-                    snap: wipdr_pdr::snap::HeadingSnapConfig {
-                        enabled: true,
-                        ..Default::default()
+            positioner: PositionerConfig {
+                // the handling gate on (the papers' preset has none), heading snapping on
+                // (its grid orientation learned from the training legs by `calibrate_pdr`)
+                pdr: wipdr_pdr::PdrConfig {
+                    heading: wipdr_pdr::pipeline::HeadingConfig {
+                        snap: wipdr_pdr::snap::HeadingSnapConfig {
+                            enabled: true,
+                            ..Default::default()
+                        },
+                        ..positioner.pdr.heading
                     },
-                    ..positioner.pdr.heading
+                    ..positioner.pdr
                 },
-                ..positioner.pdr
+                scheme: unread_scheme(),
+                ..positioner
             },
-            propagation: fit.propagation,
+            // How a site is learned: the one default of `SiteFitConfig` (the interpolated
+            // map, the path-loss extension).
+            fit: SiteFitConfig::default(),
             // Every scheme at its shipped defaults (`SchemeConfig::default_for`), not the
             // papers' presets that `paper()` lists.
             schemes: BTreeMap::new(),
@@ -111,30 +240,23 @@ impl Default for EvalConfig {
 }
 
 impl EvalConfig {
-    /// The papers' settings: [`PositionerConfig::paper`] (WKNN k = 5, no map matching), the
-    /// radio map of the measured fingerprints alone (no interpolation, no path-loss
-    /// extension), every scheme at its paper preset ([`SchemeConfig::paper_for`]).
+    /// The papers' settings: [`PositionerConfig::paper`] (WKNN k = 5, no map matching),
+    /// [`SiteFitConfig::paper`] (the radio map of the measured fingerprints alone, no
+    /// path-loss extension, PDR calibrated), every scheme at its paper preset
+    /// ([`SchemeConfig::paper_for`]).
     pub fn paper() -> Self {
-        let positioner = PositionerConfig::paper();
         Self {
-            radio_map: WalkMapConfig::default(),
-            matcher: positioner.matcher,
-            query: positioner.query,
-            pdr: positioner.pdr,
-            calibrate_pdr: true,
-            calibration: CalibrationConfig::default(),
-            score_from_first_scan: true,
-            seed: positioner.seed,
+            positioner: PositionerConfig {
+                scheme: unread_scheme(),
+                ..PositionerConfig::paper()
+            },
+            fit: SiteFitConfig::paper(),
             schemes: wipdr_fusion::scheme_names()
                 .iter()
                 .filter_map(|n| SchemeConfig::paper_for(n).ok().map(|c| (n.to_string(), c)))
                 .collect(),
-            map_matching: positioner.map_matching,
-            static_start: positioner.static_start,
+            score_from_first_scan: true,
             score_first_m: None,
-            propagation: None,
-            propagation_is_coverage: false,
-            floor: positioner.floor,
             offline: false,
         }
     }
@@ -232,28 +354,27 @@ impl EvalConfig {
             path: path.to_string(),
             reason,
         };
-        self.positioner(SchemeConfig::Wifi(Default::default()), self.pdr)
-            .validate()
-            .map_err(|e| match e {
-                wipdr_positioning::PositioningError::InvalidConfig { path, reason } => {
-                    invalid(&path, reason)
-                }
-                other => invalid("", other.to_string()),
-            })?;
-        if let Err((field, reason)) = self.calibration.validate() {
+        self.positioner.validate().map_err(|e| match e {
+            wipdr_positioning::PositioningError::InvalidConfig { path, reason } => {
+                invalid(&path, reason)
+            }
+            other => invalid("", other.to_string()),
+        })?;
+        let fit = &self.fit;
+        if let Err((field, reason)) = fit.calibration.validate() {
             return Err(invalid(&format!("calibration.{field}"), reason));
         }
-        if let Err((field, reason)) = self.query.validate_fields() {
+        if let Err((field, reason)) = self.positioner.query.validate_fields() {
             return Err(invalid(&format!("query.{field}"), reason));
         }
-        if let Err((field, reason)) = self.radio_map.validate_fields() {
+        if let Err((field, reason)) = fit.radio_map.validate_fields() {
             return Err(invalid(&format!("radio_map.{field}"), reason));
         }
-        if let Some(i) = &self.radio_map.interpolation {
+        if let Some(i) = &fit.radio_map.interpolation {
             i.validate()
                 .map_err(|e| invalid("radio_map.interpolation", e.to_string()))?;
         }
-        if let Some(p) = &self.propagation {
+        if let Some(p) = &fit.propagation {
             p.validate()
                 .map_err(|e| invalid("propagation", e.to_string()))?;
         }
@@ -262,7 +383,7 @@ impl EvalConfig {
                 .validate()
                 .map_err(|e| invalid(&format!("schemes.{name}"), e.to_string()))?;
         }
-        let not_heard = self.radio_map.radio.not_heard_dbm;
+        let not_heard = fit.radio_map.radio.not_heard_dbm;
         if !(not_heard.is_finite() && (-200.0..=-30.0).contains(&not_heard)) {
             return Err(invalid(
                 "radio_map.radio.not_heard_dbm",
@@ -279,7 +400,7 @@ impl EvalConfig {
                 format!("must be finite and >= 0, got {m}"),
             ));
         }
-        if let Some(ss) = &self.static_start {
+        if let Some(ss) = &self.positioner.static_start {
             ss.validate()
                 .map_err(|e| invalid("static_start", e.to_string()))?;
         }
@@ -298,22 +419,17 @@ impl EvalConfig {
     }
 
     /// The [`PositionerConfig`] a run of `scheme` uses, with the (calibrated) `pdr`.
-    pub fn positioner(&self, scheme: SchemeConfig, pdr: PdrConfig) -> PositionerConfig {
+    pub fn positioner_for(&self, scheme: SchemeConfig, pdr: PdrConfig) -> PositionerConfig {
         PositionerConfig {
-            matcher: self.matcher.clone(),
-            query: self.query,
             pdr,
             scheme,
-            map_matching: self.map_matching,
-            static_start: self.static_start.clone(),
-            floor: self.floor,
-            seed: self.seed,
+            ..self.positioner.clone()
         }
     }
 
-    /// How a site model is fit and run under this config ([`SiteModel::fit`]): the radio
-    /// map, extension and calibration settings, the positioner (its scheme `ekf`'s settings;
-    /// a stream names its own), and the scheme table.
+    /// How a site model is fit and run under this config ([`SiteModel::fit`]): the fit
+    /// settings, the positioner (its scheme `ekf`'s settings; a stream names its own), and
+    /// the scheme table.
     ///
     /// [`SiteModel::fit`]: wipdr_positioning::SiteModel::fit
     pub fn site_config(&self) -> SiteConfig {
@@ -321,14 +437,8 @@ impl EvalConfig {
             .scheme("ekf")
             .unwrap_or_else(|_| SchemeConfig::Ekf(Default::default()));
         SiteConfig {
-            fit: SiteFitConfig {
-                radio_map: self.radio_map,
-                propagation: self.propagation,
-                propagation_is_coverage: self.propagation_is_coverage,
-                calibrate_pdr: self.calibrate_pdr,
-                calibration: self.calibration,
-            },
-            positioner: self.positioner(default_scheme, self.pdr),
+            fit: self.fit.clone(),
+            positioner: self.positioner_for(default_scheme, self.positioner.pdr),
             schemes: self.schemes.clone(),
         }
     }
@@ -369,13 +479,21 @@ pub(crate) mod tests {
     #[test]
     fn the_defaults_are_the_recommended_settings_and_paper_is_a_preset_away() {
         let d = EvalConfig::default();
-        assert_eq!(d.matcher.kind(), "apindex");
-        assert!(d.map_matching && d.propagation.is_some() && d.radio_map.interpolation.is_some());
+        assert_eq!(d.positioner.matcher.kind(), "apindex");
+        assert!(
+            d.positioner.map_matching
+                && d.fit.propagation.is_some()
+                && d.fit.radio_map.interpolation.is_some()
+        );
         let p = EvalConfig::paper();
-        assert_eq!(p.matcher.kind(), "wknn");
-        assert!(!p.map_matching && p.propagation.is_none() && p.radio_map.interpolation.is_none());
+        assert_eq!(p.positioner.matcher.kind(), "wknn");
+        assert!(
+            !p.positioner.map_matching
+                && p.fit.propagation.is_none()
+                && p.fit.radio_map.interpolation.is_none()
+        );
         let cfg = EvalConfig::from_toml("preset = \"paper\"\nmap_matching = true\n", "t").unwrap();
-        assert!(cfg.map_matching && cfg.propagation.is_none());
+        assert!(cfg.positioner.map_matching && cfg.fit.propagation.is_none());
         assert_eq!(
             EvalConfig::from_toml("preset = \"recommended\"\n", "t").unwrap(),
             d
@@ -415,21 +533,21 @@ pub(crate) mod tests {
         let base = EvalConfig::default();
         let key = base.preparation_key();
         let mut run_only = base.clone();
-        run_only.seed = 7;
-        run_only.map_matching = true;
+        run_only.positioner.seed = 7;
+        run_only.positioner.map_matching = true;
         run_only.score_first_m = Some(20.0);
         run_only
             .schemes
             .insert("pmf".into(), SchemeConfig::default_for("pmf").unwrap());
         assert_eq!(run_only.preparation_key(), key);
         let mut propagation = base.clone();
-        propagation.propagation = Some(PropagationConfig::default());
+        propagation.fit.propagation = Some(PropagationConfig::default());
         assert_ne!(propagation.preparation_key(), key);
         let mut map = base.clone();
-        map.radio_map.max_entry_age_ms = Some(12_345);
+        map.fit.radio_map.max_entry_age_ms = Some(12_345);
         assert_ne!(map.preparation_key(), key);
         let mut coverage = propagation.clone();
-        coverage.propagation_is_coverage = true;
+        coverage.fit.propagation_is_coverage = true;
         assert_ne!(coverage.preparation_key(), propagation.preparation_key());
     }
 
@@ -439,15 +557,18 @@ pub(crate) mod tests {
         // `[query]` section dropped the 5 s staleness limit.
         let cfg =
             EvalConfig::from_toml("[matcher]\nk = 5\n[query]\nstrict = true", "t.toml").unwrap();
-        match &cfg.matcher {
+        match &cfg.positioner.matcher {
             MatcherConfig::Apindex(c) => {
                 assert!(matches!(c.metric, Metric::SharedAp(_)));
                 assert_eq!((c.k, c.top_offline, c.apply_threshold), (5, 4, false));
             }
             other => panic!("{other:?}"),
         }
-        assert_eq!(cfg.query.max_age_ms, EvalConfig::default().query.max_age_ms);
-        assert!(cfg.query.strict);
+        assert_eq!(
+            cfg.positioner.query.max_age_ms,
+            EvalConfig::default().positioner.query.max_age_ms
+        );
+        assert!(cfg.positioner.query.strict);
     }
 
     #[test]
@@ -563,7 +684,7 @@ pub(crate) mod tests {
             assert!(!e.contains("invalid type: null"), "{text}: {e}");
         }
         let cfg = EvalConfig::from_toml("[radio_map]\nmax_entry_age_ms = 0", "t").unwrap();
-        assert_eq!(cfg.radio_map.max_entry_age_ms, Some(0));
+        assert_eq!(cfg.fit.radio_map.max_entry_age_ms, Some(0));
     }
 
     /// Seen on the old main: `[schemes.ekf]` without `scheme = "ekf"` said only "missing
@@ -614,9 +735,9 @@ pub(crate) mod tests {
     #[test]
     fn presets_survive_a_trip_through_toml() {
         let mut off = EvalConfig::default();
-        off.pdr.handling.tumbling_rad_s = None;
-        off.radio_map.max_entry_age_ms = None;
-        off.query.max_age_ms = None;
+        off.positioner.pdr.handling.tumbling_rad_s = None;
+        off.fit.radio_map.max_entry_age_ms = None;
+        off.positioner.query.max_age_ms = None;
         for (name, cfg) in [
             ("default", EvalConfig::default()),
             ("paper", EvalConfig::paper()),
@@ -628,15 +749,25 @@ pub(crate) mod tests {
         }
         let text = "[pdr.handling]\ntumbling_rad_s = \"off\"\n";
         let cfg = EvalConfig::from_toml(text, "t").unwrap();
-        assert_eq!(cfg.pdr.handling.tumbling_rad_s, None);
-        assert!(EvalConfig::default().pdr.handling.tumbling_rad_s.is_some());
+        assert_eq!(cfg.positioner.pdr.handling.tumbling_rad_s, None);
+        assert!(
+            EvalConfig::default()
+                .positioner
+                .pdr
+                .handling
+                .tumbling_rad_s
+                .is_some()
+        );
         let text = "propagation = \"off\"\n[radio_map]\ninterpolation = \"off\"\n";
         let cfg = EvalConfig::from_toml(text, "t").unwrap();
-        assert!(cfg.propagation.is_none() && cfg.radio_map.interpolation.is_none());
+        assert!(cfg.fit.propagation.is_none() && cfg.fit.radio_map.interpolation.is_none());
         // A table onto an "off" base (the paper preset) turns the setting on again.
         let text = "preset = \"paper\"\n[propagation]\nmin_predicted_dbm = -85.0\n";
         let cfg = EvalConfig::from_toml(text, "t").unwrap();
-        assert_eq!(cfg.propagation.map(|p| p.min_predicted_dbm), Some(-85.0));
+        assert_eq!(
+            cfg.fit.propagation.map(|p| p.min_predicted_dbm),
+            Some(-85.0)
+        );
         let err = EvalConfig::from_toml("[pdr.handling]\ntumbling_rad_s = \"of\"\n", "t")
             .unwrap_err()
             .to_string();

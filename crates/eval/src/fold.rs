@@ -131,7 +131,7 @@ impl FoldModel {
         let config = self.model.config();
         let mut frontend = Frontend::with_floor_config(
             config.pdr,
-            self.model.matcher().stream(cfg.query),
+            self.model.matcher().stream(cfg.positioner.query),
             config.floor,
         );
         let data = self.model.data();

@@ -352,13 +352,13 @@ pub fn run_scheme(
     let mut site = env.map(|e| e.site.clone()).unwrap_or_default();
     site.coverage = Some(walk.coverage.clone());
     site.trails = walk.trails.clone();
-    let positioner = cfg.positioner(scheme.clone(), cfg.pdr);
+    let positioner = cfg.positioner_for(scheme.clone(), cfg.positioner.pdr);
     if cfg.offline && start.is_none() {
         let smoothed = smooth_fusion(
             &site,
             scheme,
             &positioner,
-            stream_seed(cfg.seed, &walk.walk),
+            stream_seed(cfg.positioner.seed, &walk.walk),
             &walk.steps,
             &walk.observations,
         )
@@ -372,7 +372,7 @@ pub fn run_scheme(
         &site,
         scheme,
         &positioner,
-        stream_seed(cfg.seed, &walk.walk),
+        stream_seed(cfg.positioner.seed, &walk.walk),
         start.map(|w| w.position),
     )
     .map_err(|source| EvalError::Positioning {

@@ -329,7 +329,7 @@ impl EvalReport {
     /// use wipdr_eval::{config::EvalConfig, report::EvalReport};
     /// let json = EvalReport::default().to_json(&EvalConfig::default());
     /// assert!(json["pooled"].is_object() && json["walks"].as_array().unwrap().is_empty());
-    /// assert_eq!(json["config"]["seed"], EvalConfig::default().seed);
+    /// assert_eq!(json["config"]["seed"], EvalConfig::default().positioner.seed);
     /// assert_eq!(json["mode"], "causal");
     /// ```
     pub fn to_json(&self, config: &EvalConfig) -> serde_json::Value {

@@ -50,10 +50,8 @@ fn test_walk_waypoints_never_reach_a_scheme() {
     }
     // Every fused scheme's track of the victim is unchanged.
     let (a, b) = (&before[0], &after[0]);
-    let seeded = EvalConfig {
-        seed: 7,
-        ..cfg.clone()
-    };
+    let mut seeded = cfg.clone();
+    seeded.positioner.seed = 7;
     for s in fused_schemes() {
         let scheme = cfg.scheme(&s).unwrap();
         let ta = pipeline::run_scheme(&scheme, a, None, &seeded).unwrap();
@@ -74,10 +72,8 @@ fn per_walk_and_pooled_figures_agree() {
     let floor = fixture_floor();
     // The plain Euclidean WKNN (the sanity bound below was set for it; the shared-AP default
     // is tuned for recorded walks, not for the simulator's radio model).
-    let cfg = EvalConfig {
-        matcher: MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default()),
-        ..EvalConfig::default()
-    };
+    let mut cfg = EvalConfig::default();
+    cfg.positioner.matcher = MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default());
     let schemes = vec!["wifi".to_string(), "pdr".to_string(), "ekf".to_string()];
     let report = pipeline::evaluate(std::slice::from_ref(&floor), &cfg, &schemes, &|| {}).unwrap();
     for s in &schemes {
@@ -206,17 +202,13 @@ fn interrupted_and_resumed_sweep_equals_uninterrupted() {
 fn med_with_a_one_scan_window_equals_single_scan_wknn() {
     let floor = fixture_floor();
     // MED's one-scan case is the Euclidean WKNN.
-    let knn = EvalConfig {
-        matcher: MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default()),
-        ..EvalConfig::default()
-    };
-    let med = EvalConfig {
-        matcher: MatcherConfig::Med(wipdr_fingerprint::med::MedConfig {
-            window: 1,
-            ..Default::default()
-        }),
-        ..knn.clone()
-    };
+    let mut knn = EvalConfig::default();
+    knn.positioner.matcher = MatcherConfig::Wknn(wipdr_fingerprint::KnnConfig::default());
+    let mut med = knn.clone();
+    med.positioner.matcher = MatcherConfig::Med(wipdr_fingerprint::med::MedConfig {
+        window: 1,
+        ..Default::default()
+    });
     let a = pipeline::prepare(std::slice::from_ref(&floor), &knn).unwrap();
     let b = pipeline::prepare(std::slice::from_ref(&floor), &med).unwrap();
     let mut compared = 0;
@@ -234,10 +226,8 @@ fn med_with_a_one_scan_window_equals_single_scan_wknn() {
     }
     assert!(compared > 100);
     // A longer window uses the history and changes some fixes.
-    let med2 = EvalConfig {
-        matcher: MatcherConfig::Med(wipdr_fingerprint::med::MedConfig::default()),
-        ..EvalConfig::default()
-    };
+    let mut med2 = EvalConfig::default();
+    med2.positioner.matcher = MatcherConfig::Med(wipdr_fingerprint::med::MedConfig::default());
     let c = pipeline::prepare(std::slice::from_ref(&floor), &med2).unwrap();
     let changed = a
         .iter()

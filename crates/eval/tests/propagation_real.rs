@@ -81,13 +81,12 @@ fn wifi_gets_closer_to_the_truth_in_coverage_gaps() {
     // The defaults extend the map (-85 dBm); without = the same config with it off.
     let with = EvalConfig::default();
     assert_eq!(
-        with.propagation.as_ref().map(|p| p.min_predicted_dbm),
+        with.fit.propagation.as_ref().map(|p| p.min_predicted_dbm),
         Some(-85.0)
     );
-    let without = mean_of(&EvalConfig {
-        propagation: None,
-        ..with.clone()
-    });
+    let mut without = with.clone();
+    without.fit.propagation = None;
+    let without = mean_of(&without);
     let with = mean_of(&with);
     println!(
         "site2/F2 wifi mean: {:.2} without, {:.2} with the extension",

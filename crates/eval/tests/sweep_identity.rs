@@ -92,10 +92,8 @@ fn resume_with_a_changed_sweep_file_is_refused() {
     );
 
     // Another base config is refused as well.
-    let base = EvalConfig {
-        seed: 2,
-        ..EvalConfig::default()
-    };
+    let mut base = EvalConfig::default();
+    base.positioner.seed = 2;
     let msg = sweep::run_sweep(&a, &base, &floors, &out, &resume(), &|| {})
         .expect_err("another base config must be refused")
         .to_string();

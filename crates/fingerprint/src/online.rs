@@ -357,7 +357,10 @@ impl MatcherConfig {
             ),
             Self::Med(c) => Model::Med(MedMatcher::new(map, *c)?),
         };
-        Ok(MatcherModel { inner })
+        Ok(MatcherModel {
+            inner,
+            config: self.clone(),
+        })
     }
 }
 
@@ -397,6 +400,7 @@ enum Model {
 #[derive(Clone)]
 pub struct MatcherModel {
     inner: Model,
+    config: MatcherConfig,
 }
 
 impl std::fmt::Debug for MatcherModel {
@@ -414,6 +418,11 @@ impl MatcherModel {
             Model::Stateless(m, _) => m.name(),
             Model::Med(m) => Matcher::name(m),
         }
+    }
+
+    /// The config it was built from ([`MatcherConfig::build`]).
+    pub fn config(&self) -> &MatcherConfig {
+        &self.config
     }
 
     /// The radio map.

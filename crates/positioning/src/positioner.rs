@@ -379,7 +379,11 @@ impl Positioner {
 
     /// A positioner for one stream over a built matcher and a site, all settings given
     /// (`seed` as given: mix a stream id in with [`crate::stream_seed`] for many streams);
-    /// what [`Positioner::new`] does once it has the site model's parts.
+    /// what [`Positioner::new`] does once it has the site model's parts. The matcher must
+    /// be the one `config.matcher` names (built by its [`MatcherConfig::build`]): another
+    /// is an error, so that a positioner always runs the matcher its config says.
+    ///
+    /// [`MatcherConfig::build`]: wipdr_fingerprint::MatcherConfig::build
     pub fn from_parts(
         matcher: &MatcherModel,
         site: &Site,
@@ -387,6 +391,16 @@ impl Positioner {
         start: Option<Point2>,
     ) -> Result<Self, PositioningError> {
         config.validate()?;
+        if matcher.config() != &config.matcher {
+            return Err(PositioningError::InvalidConfig {
+                path: "matcher".into(),
+                reason: format!(
+                    "the config names the matcher {:?} but the one given was built from {:?}: build it with `config.matcher.build(map)`",
+                    config.matcher.kind(),
+                    matcher.config().kind()
+                ),
+            });
+        }
         Ok(Self {
             frontend: Frontend::with_floor_config(
                 config.pdr,
@@ -586,4 +600,50 @@ pub fn track_of(
     }
     emit_start(positioner, &mut track);
     track
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+    use wipdr_core::Bssid;
+    use wipdr_fingerprint::{KnnConfig, MatcherConfig, RadioMap};
+
+    /// `from_parts` runs the matcher its config names: a matcher built from another config
+    /// (even of the same kind with other settings) is refused, naming the field.
+    #[test]
+    fn a_matcher_built_from_another_config_is_refused() {
+        let map = Arc::new(
+            RadioMap::from_records(
+                (0..10).map(|i| {
+                    let x = f64::from(i);
+                    (
+                        Point2::new(x, 0.0),
+                        vec![(Bssid(1), -40.0 - 4.0 * x), (Bssid(2), -76.0 + 4.0 * x)],
+                    )
+                }),
+                Default::default(),
+            )
+            .unwrap(),
+        );
+        let site = Site::new(None, &map);
+        let config = PositionerConfig::default();
+        let own = config.matcher.build(map.clone()).unwrap();
+        assert!(Positioner::from_parts(&own, &site, &config, None).is_ok());
+        for other in [
+            MatcherConfig::Wknn(KnnConfig::default()),
+            MatcherConfig::Wknn(KnnConfig {
+                k: 3,
+                ..KnnConfig::default()
+            }),
+        ] {
+            let matcher = other.build(map.clone()).unwrap();
+            let paper = PositionerConfig::paper();
+            let e = Positioner::from_parts(&matcher, &site, &config, None).unwrap_err();
+            assert!(e.to_string().contains("matcher"), "{e}");
+            // The paper preset names the default WKNN: it runs it, and refuses k = 3.
+            let ran = Positioner::from_parts(&matcher, &site, &paper, None);
+            assert_eq!(ran.is_ok(), other == paper.matcher, "{other:?}");
+        }
+    }
 }

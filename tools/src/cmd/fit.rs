@@ -16,7 +16,8 @@
 //!
 //! The fit also measures the Wi-Fi error of every training scan with its walk left out of
 //! the radio map (`leave_one_walk_out`: the radio map and matcher fit again without each
-//! walk, in parallel) and saves it in the model for `wipdr inspect MODEL --plot`;
+//! walk, in parallel; beyond `--leave-out-groups` walks, without each of that many
+//! interleaved groups of walks) and saves it in the model for `wipdr inspect MODEL --plot`;
 //! `--no-leave-one-out` skips it.
 
 use crate::cmd::eval::load_config;
@@ -27,7 +28,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::Walk;
 use wipdr_eval::fold::folds_of;
-use wipdr_positioning::site_model::{SiteModel, SourceFile, TrainingData, leave_one_walk_out};
+use wipdr_positioning::site_model::{
+    DEFAULT_LEAVE_OUT_GROUPS, SiteModel, SourceFile, TrainingData, leave_one_walk_out,
+};
 
 /// Arguments of `wipdr fit`.
 #[derive(Debug, clap::Args)]
@@ -50,6 +53,10 @@ pub struct Args {
     /// `wipdr inspect --plot`); the model positions exactly the same either way.
     #[arg(long)]
     pub no_leave_one_out: bool,
+    /// Most radio maps the leave-one-out errors fit: a site with more walks has them left
+    /// out in this many interleaved groups (at least 2).
+    #[arg(long, default_value_t = DEFAULT_LEAVE_OUT_GROUPS, value_name = "N")]
+    pub leave_out_groups: usize,
 }
 
 /// Runs the subcommand.
@@ -109,11 +116,12 @@ pub fn run(args: Args) -> Result<()> {
     let fitted_s = started.elapsed().as_secs_f64();
     if !args.no_leave_one_out {
         let t0 = Instant::now();
-        let loo = leave_one_walk_out(&data, &site_config)
+        let loo = leave_one_walk_out(&data, &site_config, args.leave_out_groups)
             .with_context(|| format!("leave-one-walk-out errors of {}", args.data.display()))?;
         eprintln!(
-            "leave-one-walk-out Wi-Fi errors: {} walks ({} skipped), {} scans located ({} unmatched), {} kept, in {:.1} s",
+            "leave-one-walk-out Wi-Fi errors: {} walks in {} groups ({} skipped), {} scans located ({} unmatched), {} kept, in {:.1} s",
             loo.walks,
+            loo.groups,
             loo.skipped_walks,
             loo.scans,
             loo.unmatched_scans,

@@ -230,10 +230,11 @@ fn survey_guidance(
         .with_context(|| format!("survey guidance of {}", path.display()))?;
     match &d.leave_one_out {
         Some(l) => println!(
-            "  survey guidance: leave-one-walk-out Wi-Fi errors of {} scans ({} kept) in {} walks ({} skipped, {} scans unmatched); gaps: farther than {} m from any measured reference point",
+            "  survey guidance: leave-one-walk-out Wi-Fi errors of {} scans ({} kept) in {} walks left out in {} groups ({} skipped, {} scans unmatched); gaps: farther than {} m from any measured reference point",
             l.scans,
             l.points.len(),
             l.walks,
+            l.groups,
             l.skipped_walks,
             l.unmatched_scans,
             args.gap_m
@@ -263,8 +264,13 @@ fn survey_guidance(
             )
         };
         let (share, area) = s.farther_than(args.gap_m);
+        let whole = if d.plan.as_ref().is_some_and(|p| !p.outline.is_empty()) {
+            "of the floor outline"
+        } else {
+            "of the box around the data: the model has no floor outline"
+        };
         println!(
-            "    {floor}: {error}; {} reference points; {area:.0} m² ({:.0} % of the floor) farther than {} m",
+            "    {floor}: {error}; {} reference points; {area:.0} m² ({:.0} % {whole}) farther than {} m",
             s.reference_points.len(),
             100.0 * share,
             args.gap_m
@@ -311,10 +317,11 @@ fn survey_guidance(
             },
         };
         let title = format!(
-            "{}: where to survey next (red: large expected error, far from data, few APs; grey: no leave-one-out scan within {} m)",
-            d.name, settings.error_radius_m
+            "{}: where to survey next (red: large expected error, far from data, few APs; grey: no leave-one-out scan within {} m, no reference point within {} m)",
+            d.name, settings.error_radius_m, args.gap_m
         );
-        let (w, h) = crate::survey_plot::draw(out, &title, &surveys, d.plan.as_ref(), scales)?;
+        let (w, h) =
+            crate::survey_plot::draw(out, &title, &surveys, d.plan.as_ref(), scales, args.gap_m)?;
         println!("  wrote {} ({w} x {h} px)", out.display());
     }
     Ok(())

@@ -323,10 +323,8 @@ mod tests {
             e.contains("shard differs: the whole sweep vs shard 1/2"),
             "{e}"
         );
-        let base = EvalConfig {
-            seed: 99,
-            ..EvalConfig::default()
-        };
+        let mut base = EvalConfig::default();
+        base.positioner.seed = 99;
         let other = RunIdentity::new(&s, &base, &[], None, 6).unwrap();
         let e = ResultsFile::open(&path, &other, true)
             .unwrap_err()

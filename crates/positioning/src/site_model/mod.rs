@@ -64,8 +64,8 @@ pub use pressure::{
 };
 pub use provenance::{Provenance, SourceFile};
 pub use survey::{
-    FloorSurvey, LeaveOneOut, LeaveOutPoint, MAX_LEAVE_OUT_POINTS, SurveySettings, floor_survey,
-    leave_one_walk_out, survey_floors,
+    DEFAULT_LEAVE_OUT_GROUPS, FloorSurvey, LeaveOneOut, LeaveOutPoint, MAX_LEAVE_OUT_POINTS,
+    SurveySettings, floor_survey, leave_one_walk_out, survey_floors,
 };
 
 use crate::{

@@ -3,9 +3,10 @@
 //! Three measures per floor, on a raster over the floor:
 //!
 //! - the **expected Wi-Fi error**: each training walk left out of the radio map in turn, its
-//!   scans located by the map of the other walks ([`leave_one_walk_out`], measured at fit
-//!   time and saved in the model), interpolated between the scans by inverse distance and
-//!   left blank farther than [`SurveySettings::error_radius_m`] from any of them;
+//!   scans located by the map of the other walks ([`leave_one_walk_out`]; on a site of many
+//!   walks, groups of walks left out together; measured at fit time and saved in the
+//!   model), interpolated between the scans by inverse distance and left blank farther than
+//!   [`SurveySettings::error_radius_m`] from any of them;
 //! - the **distance to the nearest measured reference point** on the floor;
 //! - the **APs heard** at that nearest reference point.
 //!
@@ -46,6 +47,9 @@ pub struct LeaveOutPoint {
 pub struct LeaveOneOut {
     /// The located scans (at most [`MAX_LEAVE_OUT_POINTS`], thinned evenly beyond).
     pub points: Vec<LeaveOutPoint>,
+    /// Radio maps fit: the walks were left out in this many groups (one walk each when
+    /// there were no more walks than groups).
+    pub groups: usize,
     /// Walks left out and located.
     pub walks: usize,
     /// Walks whose other walks gave no radio map (too few data), not located.
@@ -110,33 +114,57 @@ struct WalkOut {
     skipped: bool,
 }
 
-/// Leaves each training walk out in turn: fits the radio map of the other walks under
+/// Most radio maps [`leave_one_walk_out`] fits by default: up to this many walks each is
+/// left out alone; a site with more walks is split into this many interleaved groups left
+/// out in turn, as many as the evaluation protocol's folds (`wipdr_eval::folds::FOLDS`), so
+/// that the errors compare with the `wifi` rows of `wipdr eval`. On `ilc20/site1` (208
+/// walks, two cores shared with other builds) one map per walk ran for over 10 minutes
+/// before it was stopped; 10 groups took 77 s beside a 12 s fit (`wipdr fit --data
+/// ../shared/data/ilc20/site1 --out s1.wipdr --leave-out-groups 10` prints both).
+pub const DEFAULT_LEAVE_OUT_GROUPS: usize = 5;
+
+/// Leaves the training walks out in turn: fits the radio map of the other walks under
 /// `config.fit` (interpolation and path-loss extension included), builds
-/// `config.positioner.matcher` on it and locates the left-out walk's scans with
-/// `config.positioner.query`; each scan's error is the distance from the fix to the walk's
-/// true position at the scan's time. Walks run in parallel (rayon).
+/// `config.positioner.matcher` on it and locates the left-out walks' scans with
+/// `config.positioner.query`, each walk as its own stream; a scan's error is the distance
+/// from the fix to the walk's true position at the scan's time.
 ///
-/// A walk whose other walks give no radio map is counted in
+/// With at most `max_groups` walks, each walk is left out alone (leave one walk out); with
+/// more, walk `i` (in the given order) is in group `i mod max_groups` and each group is left
+/// out together, so that no more than `max_groups` maps are fit (in parallel, rayon). A
+/// group whose other walks give no radio map counts its walks in
 /// [`LeaveOneOut::skipped_walks`]; a site of one walk, or one fit from a survey table, has
-/// nothing to leave out (an empty result). Errors only on an invalid config.
+/// nothing to leave out (an empty result). Errors only on an invalid config or a
+/// `max_groups` below 2.
 pub fn leave_one_walk_out(
     data: &TrainingData<'_>,
     config: &SiteConfig,
+    max_groups: usize,
 ) -> Result<LeaveOneOut, SiteModelError> {
     config.positioner.validate()?;
+    if max_groups < 2 {
+        return Err(SiteModelError::Survey(format!(
+            "leave-one-out groups: {max_groups}, must be at least 2"
+        )));
+    }
     if data.survey.is_some() && !data.walks.is_empty() {
         return Err(SiteModelError::WalksAndSurvey);
     }
     if data.walks.len() < 2 {
         return Ok(LeaveOneOut::default());
     }
-    let outs: Vec<WalkOut> = (0..data.walks.len())
+    let groups = data.walks.len().min(max_groups);
+    let mut outs: Vec<(usize, WalkOut)> = (0..groups)
         .into_par_iter()
-        .map(|i| leave_out(data, config, i))
+        .flat_map_iter(|g| leave_out_group(data, config, groups, g))
         .collect();
-    let mut all = LeaveOneOut::default();
+    outs.sort_by_key(|(i, _)| *i);
+    let mut all = LeaveOneOut {
+        groups,
+        ..LeaveOneOut::default()
+    };
     let mut points = Vec::new();
-    for out in outs {
+    for (_, out) in outs {
         if out.skipped {
             all.skipped_walks += 1;
             continue;
@@ -150,6 +178,7 @@ pub fn leave_one_walk_out(
     all.points = points.into_iter().step_by(step).collect();
     tracing::info!(
         site = data.name,
+        groups,
         walks = all.walks,
         skipped = all.skipped_walks,
         scans = all.scans,
@@ -159,17 +188,20 @@ pub fn leave_one_walk_out(
     Ok(all)
 }
 
-/// Walk `i` located by the map of the others.
-fn leave_out(data: &TrainingData<'_>, config: &SiteConfig, i: usize) -> WalkOut {
-    let walk: &Walk = data.walks[i];
-    if walk.wifi.is_empty() || walk.waypoints.is_empty() {
-        return WalkOut::default();
-    }
+/// The walks of group `g` of `groups` (walk `i` in group `i mod groups`), each located by
+/// the map of the walks outside the group: `(walk index, what it gave)`.
+fn leave_out_group(
+    data: &TrainingData<'_>,
+    config: &SiteConfig,
+    groups: usize,
+    g: usize,
+) -> Vec<(usize, WalkOut)> {
+    let left_out: Vec<usize> = (g..data.walks.len()).step_by(groups).collect();
     let others: Vec<&Walk> = data
         .walks
         .iter()
         .enumerate()
-        .filter(|&(j, _)| j != i)
+        .filter(|&(j, _)| j % groups != g)
         .map(|(_, w)| *w)
         .collect();
     let sub = TrainingData {
@@ -178,11 +210,19 @@ fn leave_out(data: &TrainingData<'_>, config: &SiteConfig, i: usize) -> WalkOut 
         ..*data
     };
     let skipped = |reason: String| {
-        tracing::debug!(site = data.name, walk = %walk.meta.id, %reason, "walk not left out");
-        WalkOut {
-            skipped: true,
-            ..WalkOut::default()
-        }
+        tracing::debug!(site = data.name, group = g, %reason, "walks not left out");
+        left_out
+            .iter()
+            .map(|&i| {
+                (
+                    i,
+                    WalkOut {
+                        skipped: true,
+                        ..WalkOut::default()
+                    },
+                )
+            })
+            .collect()
     };
     let learned = match fit_radio_map(&sub, &config.fit) {
         Ok(l) => l,
@@ -192,27 +232,33 @@ fn leave_out(data: &TrainingData<'_>, config: &SiteConfig, i: usize) -> WalkOut 
         Ok(m) => m,
         Err(e) => return skipped(e.to_string()),
     };
-    let mut stream = matcher.stream(config.positioner.query);
-    let mut out = WalkOut::default();
-    for scan in &walk.wifi {
-        let Some(truth) = walk.position_at(scan.t) else {
-            continue;
-        };
-        match stream.locate_online(scan, &ScanContext::default()) {
-            Ok(obs) => {
-                let error_m = (obs.estimate - truth).norm();
-                if error_m.is_finite() {
-                    out.points.push(LeaveOutPoint {
-                        position: truth,
-                        floor: walk.floor_at(scan.t),
-                        error_m,
-                    });
+    left_out
+        .iter()
+        .map(|&i| {
+            let walk: &Walk = data.walks[i];
+            let mut stream = matcher.stream(config.positioner.query);
+            let mut out = WalkOut::default();
+            for scan in &walk.wifi {
+                let Some(truth) = walk.position_at(scan.t) else {
+                    continue;
+                };
+                match stream.locate_online(scan, &ScanContext::default()) {
+                    Ok(obs) => {
+                        let error_m = (obs.estimate - truth).norm();
+                        if error_m.is_finite() {
+                            out.points.push(LeaveOutPoint {
+                                position: truth,
+                                floor: walk.floor_at(scan.t),
+                                error_m,
+                            });
+                        }
+                    }
+                    Err(_) => out.unmatched += 1,
                 }
             }
-            Err(_) => out.unmatched += 1,
-        }
-    }
-    out
+            (i, out)
+        })
+        .collect()
 }
 
 /// How the survey rasters of a floor are made ([`floor_survey`]).
@@ -505,7 +551,7 @@ mod tests {
             walks: &walks,
             ..Default::default()
         };
-        let loo = leave_one_walk_out(&data, &nearest_neighbour_config()).unwrap();
+        let loo = leave_one_walk_out(&data, &nearest_neighbour_config(), 10).unwrap();
         assert_eq!(
             (loo.walks, loo.skipped_walks, loo.unmatched_scans),
             (2, 0, 0)
@@ -524,8 +570,34 @@ mod tests {
             walks: &walks[..1],
             ..data
         };
-        let loo = leave_one_walk_out(&one, &nearest_neighbour_config()).unwrap();
+        let loo = leave_one_walk_out(&one, &nearest_neighbour_config(), 10).unwrap();
         assert_eq!(loo, LeaveOneOut::default());
+        assert!(leave_one_walk_out(&data, &nearest_neighbour_config(), 1).is_err());
+    }
+
+    /// Corridors at y = 0, 16 and 4 in two groups: walks 0 and 2 (y = 0 and 4) are left
+    /// out together and located on walk 1's corridor (16 and 12 m off); walk 1 alone, on
+    /// the nearer of the other two (y = 4, 12 m off). Left out one by one, walks 0 and 2
+    /// would find each other 4 m away.
+    #[test]
+    fn more_walks_than_groups_are_left_out_in_interleaved_groups() {
+        let walks = [corridor("a", 0.0), corridor("b", 16.0), corridor("c", 4.0)];
+        let refs: Vec<&Walk> = walks.iter().collect();
+        let data = TrainingData {
+            name: "three corridors",
+            walks: &refs,
+            ..Default::default()
+        };
+        let loo = leave_one_walk_out(&data, &nearest_neighbour_config(), 2).unwrap();
+        assert_eq!((loo.groups, loo.walks, loo.scans), (2, 3, 63));
+        let errors: Vec<f64> = loo.points.iter().map(|p| p.error_m).collect();
+        for (k, e) in errors.iter().enumerate() {
+            let expected = if k < 21 { 16.0 } else { 12.0 };
+            assert!((e - expected).abs() < 1e-9, "scan {k}: {e}");
+        }
+        let one_by_one = leave_one_walk_out(&data, &nearest_neighbour_config(), 3).unwrap();
+        assert_eq!(one_by_one.groups, 3);
+        assert!((one_by_one.points[0].error_m - 4.0).abs() < 1e-9);
     }
 
     #[test]
@@ -575,7 +647,7 @@ mod tests {
         let cfg = nearest_neighbour_config();
         let mut model = SiteModel::fit(&data, &cfg).unwrap();
         model
-            .set_leave_one_out(Some(leave_one_walk_out(&data, &cfg).unwrap()))
+            .set_leave_one_out(Some(leave_one_walk_out(&data, &cfg, 10).unwrap()))
             .unwrap();
         let floors = survey_floors(&model);
         assert_eq!(floors, vec![None]);
