@@ -119,8 +119,9 @@ struct WalkOut {
 /// out in turn, as many as the evaluation protocol's folds (`wipdr_eval::folds::FOLDS`), so
 /// that the errors compare with the `wifi` rows of `wipdr eval`. On `ilc20/site1` (208
 /// walks, two cores shared with other builds) one map per walk ran for over 10 minutes
-/// before it was stopped; 10 groups took 77 s beside a 12 s fit (`wipdr fit --data
-/// ../shared/data/ilc20/site1 --out s1.wipdr --leave-out-groups 10` prints both).
+/// before it was stopped; 10 groups took 77 s, 5 groups 64 s, beside a fit of 10 to 24 s
+/// (`wipdr fit --data ../shared/data/ilc20/site1 --out s1.wipdr [--leave-out-groups 10]`
+/// prints both).
 pub const DEFAULT_LEAVE_OUT_GROUPS: usize = 5;
 
 /// Leaves the training walks out in turn: fits the radio map of the other walks under
