@@ -668,5 +668,16 @@ mod tests {
             ..SurveySettings::default()
         };
         assert!(floor_survey(&model, None, &bad).is_err());
+        // A NaN error (a damaged or crafted model) is refused, by the setter and on load.
+        let mut loo = model.data().leave_one_out.clone().unwrap();
+        loo.points[3].error_m = f64::NAN;
+        assert!(matches!(
+            model.clone().set_leave_one_out(Some(loo.clone())),
+            Err(SiteModelError::Survey(_))
+        ));
+        let mut data = model.data().clone();
+        data.leave_one_out = Some(loo);
+        let e = SiteModel::from_data(data, None).unwrap_err();
+        assert!(e.to_string().contains("point 3"), "{e}");
     }
 }
