@@ -38,6 +38,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::broadcast;
 use wipdr_io::sample_stream::PlainSample;
+use wipdr_positioning::track_format::{self, TrackRow};
 use wipdr_positioning::{StreamIdentity, StreamSpec};
 
 type St = State<Arc<AppState>>;
@@ -551,11 +552,12 @@ async fn get_track(
         })?;
     let frame = state.model.data().geo_frame;
     let format = q.format.as_deref().unwrap_or("geojson");
+    let rows: Vec<TrackRow> = track.iter().map(StoredEstimate::row).collect();
     Ok(match format {
         "geojson" => (
             [(header::CONTENT_TYPE, "application/geo+json")],
-            Json(crate::track::geojson(
-                &track,
+            Json(track_format::geojson(
+                &rows,
                 &record.stream_id,
                 &record.scheme,
                 frame.as_ref(),
@@ -569,7 +571,7 @@ async fn get_track(
         .into_response(),
         "csv" => (
             [(header::CONTENT_TYPE, "text/csv")],
-            crate::track::csv(&track),
+            track_format::csv(&rows),
         )
             .into_response(),
         "ipin" => {
@@ -581,7 +583,7 @@ async fn get_track(
             };
             (
                 [(header::CONTENT_TYPE, "text/csv")],
-                crate::track::ipin(&track, &frame, end),
+                track_format::ipin(&rows, &frame, end),
             )
                 .into_response()
         }
