@@ -97,9 +97,14 @@ fn an_unknown_ap_changes_nothing_and_one_wrong_reading_does_not_move_the_best_fa
 #[test]
 fn a_scan_that_fits_two_places_keeps_both() {
     // One AP in the middle of a 40 m corridor: a scan 10 m from it fits x = 10 and x = 30.
+    // Untempered (evidence_scale 1), so the two modes stand out; the default only flattens
+    // them alike.
     let aps = [Point2::new(20.0, 0.0)];
-    let model =
-        ScanLikelihood::fit(&floor_map(&aps, 40.0, 0.0), &LikelihoodConfig::default()).unwrap();
+    let config = LikelihoodConfig {
+        evidence_scale: 1.0,
+        ..Default::default()
+    };
+    let model = ScanLikelihood::fit(&floor_map(&aps, 40.0, 0.0), &config).unwrap();
     let raster = model
         .raster(Some(0), &scan_at(&aps, Point2::new(10.0, 0.0), 0.0), 0.0)
         .unwrap();
@@ -113,6 +118,21 @@ fn a_scan_that_fits_two_places_keeps_both() {
     };
     let (left, right) = (mass_near(10.0), mass_near(30.0));
     assert!(left > 0.3 && right > 0.3, "{left} {right}");
+    // The AP's own place (where the scan would read -30 dBm) is at least 5 times less likely than
+    // either mode (the kernel blurs its steep field): the column x = 20 against x = 10.
+    let column = |x: f64| -> f64 {
+        post.iter()
+            .enumerate()
+            .filter(|(i, _)| (raster.grid.centre_of_index(*i).x - x).abs() < 1.0)
+            .map(|(_, p)| p)
+            .sum()
+    };
+    assert!(
+        column(20.0) < 0.2 * column(10.0),
+        "{} {}",
+        column(20.0),
+        column(10.0)
+    );
     assert!((left - right).abs() < 0.05, "{left} {right}");
 }
 
