@@ -86,7 +86,11 @@ impl PointMassFilter {
             return None;
         }
         let h = self.cfg.cell_m;
-        self.pending_drift += self.cfg.drift_m2_per_step;
+        // A motion event with its own covariance (learned odometry) blurs by its mean
+        // per-axis variance instead of the step model's drift.
+        self.pending_drift += step
+            .displacement_covariance()
+            .map_or(self.cfg.drift_m2_per_step, |c| 0.5 * c.trace());
         let mut blurs = 0;
         while self.pending_drift >= 0.5 * h * h {
             self.blur();

@@ -80,6 +80,21 @@ impl LearnedOdometry {
         Self::from_safetensors(SHIPPED_WEIGHTS)
     }
 
+    /// The shipped weights parsed once per process and shared between streams (a
+    /// [`crate::odometry::OdometryStream`] each).
+    pub fn shipped_shared() -> Result<std::sync::Arc<Self>, OdometryError> {
+        static SHIPPED: std::sync::OnceLock<Result<std::sync::Arc<LearnedOdometry>, String>> =
+            std::sync::OnceLock::new();
+        SHIPPED
+            .get_or_init(|| {
+                Self::shipped()
+                    .map(std::sync::Arc::new)
+                    .map_err(|e| e.to_string())
+            })
+            .clone()
+            .map_err(OdometryError::Format)
+    }
+
     /// The odometry of a safetensors weight file's bytes.
     pub fn from_safetensors(bytes: &[u8]) -> Result<Self, OdometryError> {
         Ok(Self {
