@@ -216,7 +216,7 @@ impl MotionSummary {
             segments: kept.len(),
             mean_length_m: kept.iter().map(|&(l, _)| l).sum::<f64>() / n,
             mean_m: errors.iter().sum::<f64>() / n,
-            median_m: ErrorStats::from_errors(&errors).median,
+            median_m: ErrorStats::from_errors(&errors).p50,
         }
     }
 }
