@@ -64,14 +64,22 @@ pub struct StepEvent {
     pub covariance: Option<[f64; 3]>,
 }
 
+/// Largest displacement variance a motion event may carry, m² (a 1 km standard deviation):
+/// beyond it the covariance is not usable ([`StepEvent::displacement_covariance`]) and would
+/// overflow the filters' arithmetic. The learned odometry's variances stay below about
+/// 400 m² a second (`wipdr_pdr::odometry::LOG_VAR_RANGE`).
+pub const MAX_DISPLACEMENT_VARIANCE_M2: f64 = 1e6;
+
 impl StepEvent {
     /// The displacement covariance as a matrix, when the event carries a usable one: every
-    /// entry finite, positive semi-definite (`xx, yy >= 0`, `xy^2 <= xx yy`).
+    /// entry finite, positive semi-definite (`xx, yy >= 0`, `xy^2 <= xx yy`), variances at
+    /// most [`MAX_DISPLACEMENT_VARIANCE_M2`]. `None` otherwise: the schemes then use their own
+    /// step noise.
     pub fn displacement_covariance(&self) -> Option<nalgebra::Matrix2<f64>> {
         let [xx, xy, yy] = self.covariance?;
         let ok = [xx, xy, yy].iter().all(|v| v.is_finite())
-            && xx >= 0.0
-            && yy >= 0.0
+            && (0.0..=MAX_DISPLACEMENT_VARIANCE_M2).contains(&xx)
+            && (0.0..=MAX_DISPLACEMENT_VARIANCE_M2).contains(&yy)
             && xy * xy <= xx * yy;
         ok.then(|| nalgebra::Matrix2::new(xx, xy, xy, yy))
     }

@@ -782,5 +782,32 @@ mod tests {
                 }
             }
         }
+
+        /// Motion events with any covariance (valid, not positive semi-definite, huge,
+        /// non-finite) mixed with fixes keep the covariance positive definite and the
+        /// estimate finite.
+        #[test]
+        fn covariance_pd_for_any_learned_displacements(
+            inputs in prop::collection::vec(
+                (any::<bool>(), 0.0f64..3.0, -10.0f64..10.0, -1e4f64..1e4, -1e4f64..1e4,
+                 prop::array::uniform3(prop_oneof![-1.0f64..5.0, Just(f64::NAN), Just(1e300)])),
+                1..80),
+        ) {
+            let mut f = ErrorStateEkf::new("x", EkfConfig::default(), Adaptation::None, false,
+                None).unwrap();
+            let mut t = 0;
+            for (is_step, len, heading, x, y, cov) in inputs {
+                t += 1000;
+                if is_step {
+                    f.on_step(&StepEvent { covariance: Some(cov), ..step(t, len, heading) });
+                } else {
+                    f.on_wifi(&obs_at(t, x, y));
+                }
+                prop_assert!(kalman::is_symmetric_pd(&f.covariance()));
+                if let Some(e) = f.estimate() {
+                    prop_assert!(e.position.x.is_finite() && e.position.y.is_finite());
+                }
+            }
+        }
     }
 }
