@@ -803,4 +803,6 @@ fn a_displacement_with_covariance_blurs_by_its_variance() {
     assert_eq!(run(None), 0);
     // mean variance (2.2 + 1.8) / 2 = 2 m²: four blurs of 0.5 m²
     assert_eq!(run(Some([2.2, 0.1, 1.8])), 4);
+    // the largest usable covariance: at most MAX_EVENT_BLURS passes
+    assert_eq!(run(Some([1e6, 0.0, 1e6])), 64);
 }
