@@ -71,6 +71,9 @@ pub struct EvalConfig {
     /// scheme run forward and on the reversed walk, combined), which uses inputs after each
     /// estimate's time. Default `false`: causal estimates, what a live user gets.
     pub offline: bool,
+    /// The motion source between fixes ([`wipdr_positioning::config::Odometry`],
+    /// `odometry = "steps" | "learned"`); `pdr` and every fused scheme run it.
+    pub odometry: wipdr_positioning::config::Odometry,
 }
 
 impl Default for EvalConfig {
@@ -136,6 +139,7 @@ impl EvalConfig {
             propagation_is_coverage: false,
             floor: positioner.floor,
             offline: false,
+            odometry: positioner.odometry,
         }
     }
 }
@@ -308,6 +312,7 @@ impl EvalConfig {
             static_start: self.static_start.clone(),
             floor: self.floor,
             seed: self.seed,
+            odometry: self.odometry,
         }
     }
 
