@@ -8,6 +8,10 @@
 //!   throughput, in milliseconds of walk: criterion's `Kelem/s` is the real-time factor
 //!   (seconds of walk positioned per second of computing).
 //!
+//! - `{ekf,pmf}-learned`: the same with `odometry = "learned"` (the learned inertial
+//!   odometry's network one window a second instead of the steps moving the fuser; the PDR
+//!   still runs for the matchers).
+//!
 //! `cargo bench -p wipdr-benches --bench positioner`
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
@@ -53,6 +57,11 @@ fn positioner(c: &mut Criterion) {
     let model = FoldModel::build(&floor, folds_of(&floor)[index], &cfg)
         .expect("fold model")
         .model;
+    let mut learned_cfg = cfg.clone();
+    learned_cfg.positioner.odometry = wipdr_positioning::config::Odometry::Learned;
+    let learned = FoldModel::build(&floor, folds_of(&floor)[index], &learned_cfg)
+        .expect("fold model")
+        .model;
     let samples: Vec<Sample> = samples_of(walk).collect();
     let duration_ms = walk.duration_s() * 1000.0;
     eprintln!(
@@ -76,8 +85,13 @@ fn positioner(c: &mut Criterion) {
         let mut g = c.benchmark_group(group);
         g.sample_size(10);
         g.throughput(throughput);
-        for scheme in ["ekf", "pmf"] {
-            g.bench_with_input(BenchmarkId::from_parameter(scheme), &scheme, |b, scheme| {
+        for (id, scheme, model) in [
+            ("ekf", "ekf", &model),
+            ("pmf", "pmf", &model),
+            ("ekf-learned", "ekf", &learned),
+            ("pmf-learned", "pmf", &learned),
+        ] {
+            g.bench_with_input(BenchmarkId::from_parameter(id), &scheme, |b, scheme| {
                 b.iter(|| {
                     let mut p = model
                         .positioner(scheme, &StreamSpec::default())

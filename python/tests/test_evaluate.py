@@ -11,7 +11,9 @@ SCHEMES = ["wifi", "pdr", "ekf", "pmf"]
 def test_evaluate_equals_cli_json_on_the_fixtures(wipdr_bin, tmp_path):
     cli = cli_eval_json(wipdr_bin, tmp_path, [FIXTURE_FLOOR], SCHEMES)
     py = wipdr.evaluate([str(FIXTURE_FLOOR)], SCHEMES)
-    assert py.keys() == {"pooled", "floors", "walks", "schemes", "mode", "config"}
+    assert py.keys() == {
+        "pooled", "floors", "walks", "schemes", "mode", "config", "skips", "skipped_runs", "motion",
+    }
     assert py["mode"] == "causal"
     assert py["schemes"] == SCHEMES
     assert list(py["floors"]) == ["sim/F1"]

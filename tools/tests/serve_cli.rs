@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::wipdr;
+use common::{chromium, wipdr};
 use serde_json::{Value, json};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
@@ -315,23 +315,6 @@ fn kill_9_loses_at_most_the_last_flush_interval_and_sigterm_loses_nothing() {
     );
     // The killed run's track is still readable too.
     assert_eq!(track(&server, &id), stored);
-}
-
-/// The browser: `$WIPDR_CHROMIUM`, else the first of the usual names on `PATH`.
-fn chromium() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("WIPDR_CHROMIUM") {
-        return Some(PathBuf::from(p));
-    }
-    let path = std::env::var_os("PATH")?;
-    [
-        "chromium",
-        "chromium-browser",
-        "google-chrome",
-        "google-chrome-stable",
-    ]
-    .iter()
-    .flat_map(|name| std::env::split_paths(&path).map(move |dir| dir.join(name)))
-    .find(|p| p.is_file())
 }
 
 #[test]

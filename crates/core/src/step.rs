@@ -39,7 +39,9 @@ pub struct MotionState {
     pub stationary: bool,
 }
 
-/// One detected step.
+/// One motion event: a detected step, or a learned odometry output (the displacement over
+/// its interval with its covariance, see [`StepEvent::covariance`]). Either way the event
+/// moves the walker by `length` along `heading`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct StepEvent {
     /// Time of the step (Unix ms), when it was detected (causal).
@@ -54,4 +56,31 @@ pub struct StepEvent {
     pub period_s: f64,
     /// Motion state.
     pub motion: MotionState,
+    /// The covariance `(xx, xy, yy)` of the displacement (m², map frame East / North) when
+    /// the motion source gives one (learned odometry: `wipdr_pdr::odometry`); the schemes
+    /// then move by the displacement with this noise instead of their own step noise.
+    /// `None` for a detected step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<[f64; 3]>,
+}
+
+/// Largest displacement variance a motion event may carry, m² (a 1 km standard deviation):
+/// beyond it the covariance is not usable ([`StepEvent::displacement_covariance`]) and would
+/// overflow the filters' arithmetic. The learned odometry's variances stay below about
+/// 400 m² a second (`wipdr_pdr::odometry::LOG_VAR_RANGE`).
+pub const MAX_DISPLACEMENT_VARIANCE_M2: f64 = 1e6;
+
+impl StepEvent {
+    /// The displacement covariance as a matrix, when the event carries a usable one: every
+    /// entry finite, positive semi-definite (`xx, yy >= 0`, `xy^2 <= xx yy`), variances at
+    /// most [`MAX_DISPLACEMENT_VARIANCE_M2`]. `None` otherwise: the schemes then use their own
+    /// step noise.
+    pub fn displacement_covariance(&self) -> Option<nalgebra::Matrix2<f64>> {
+        let [xx, xy, yy] = self.covariance?;
+        let ok = [xx, xy, yy].iter().all(|v| v.is_finite())
+            && (0.0..=MAX_DISPLACEMENT_VARIANCE_M2).contains(&xx)
+            && (0.0..=MAX_DISPLACEMENT_VARIANCE_M2).contains(&yy)
+            && xy * xy <= xx * yy;
+        ok.then(|| nalgebra::Matrix2::new(xx, xy, xy, yy))
+    }
 }

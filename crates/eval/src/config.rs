@@ -100,6 +100,9 @@ struct EvalConfigFile {
     floor: FloorConfig,
     /// [`EvalConfig::offline`].
     offline: bool,
+    /// The motion source between fixes ([`wipdr_positioning::config::Odometry`],
+    /// `odometry = "steps" | "learned"`); `pdr` and every fused scheme run it.
+    odometry: wipdr_positioning::config::Odometry,
 }
 
 impl Default for EvalConfigFile {
@@ -127,6 +130,7 @@ impl From<EvalConfigFile> for EvalConfig {
             propagation_is_coverage,
             floor,
             offline,
+            odometry,
         } = f;
         Self {
             positioner: PositionerConfig {
@@ -138,6 +142,7 @@ impl From<EvalConfigFile> for EvalConfig {
                 static_start,
                 floor,
                 seed,
+                odometry,
             },
             fit: SiteFitConfig {
                 radio_map,
@@ -167,6 +172,7 @@ impl From<EvalConfig> for EvalConfigFile {
                     static_start,
                     floor,
                     seed,
+                    odometry,
                 },
             fit:
                 SiteFitConfig {
@@ -198,6 +204,7 @@ impl From<EvalConfig> for EvalConfigFile {
             propagation_is_coverage,
             floor,
             offline,
+            odometry,
         }
     }
 }

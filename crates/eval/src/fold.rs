@@ -120,20 +120,26 @@ impl FoldModel {
 
     /// Streams a test walk's raw samples through the front end of the
     /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher), recording its
-    /// step and fix events: the scheme-independent half of every run, done once per walk.
+    /// motion (step or learned odometry, as the config's `odometry` says) and fix events: the
+    /// scheme-independent half of every run, done once per walk.
     pub fn prepare_walk(
         &self,
         floor: &FloorInput,
         floor_index: usize,
         walk: &Walk,
         cfg: &EvalConfig,
-    ) -> PreparedWalk {
+    ) -> Result<PreparedWalk, EvalError> {
         let config = self.model.config();
         let mut frontend = Frontend::with_floor_config(
             config.pdr,
             self.model.matcher().stream(cfg.positioner.query),
             config.floor,
-        );
+        )
+        .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)
+        .map_err(|source| EvalError::Positioning {
+            floor: floor.label.clone(),
+            source,
+        })?;
         let data = self.model.data();
         if !data.floors.is_empty() {
             frontend.set_building_floors(&data.floors, &data.floor_heights_m);
@@ -158,7 +164,7 @@ impl FoldModel {
             }
         }
         let counts = frontend.counts();
-        PreparedWalk {
+        Ok(PreparedWalk {
             floor: floor.label.clone(),
             floor_index,
             walk: walk.meta.id.clone(),
@@ -178,7 +184,7 @@ impl FoldModel {
             coverage: self.model.coverage(),
             trails: self.model.trails().cloned(),
             missing_streams: crate::streams::missing_streams(walk),
-        }
+        })
     }
 }
 

@@ -13,7 +13,7 @@
 use crate::coverage::attach_coverage;
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
-use crate::report::{EvalReport, SkippedRun, WalkResult};
+use crate::report::{EvalReport, SkippedRun, WalkMotion, WalkResult};
 use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -293,7 +293,7 @@ fn prepare_fold(
         .test_walks
         .par_iter()
         .map(|&i| model.prepare_walk(floor, floor_index, &floor.data.walks[i], cfg))
-        .collect();
+        .collect::<Result<_, _>>()?;
     // Matcher cost of the fold (for `-v` runs: visited fraction, summed over the fold's walks).
     let scans: usize = prepared.iter().map(|p| p.observations.len()).sum();
     let visited: usize = prepared
@@ -599,12 +599,58 @@ pub fn run_prepared_observed(
         .iter()
         .map(|f| (f.label.clone(), f.input_skips.clone()))
         .collect();
+    let motion = prepared
+        .iter()
+        .map(|pw| WalkMotion {
+            floor: pw.floor.clone(),
+            walk: pw.walk.clone(),
+            fold: pw.fold,
+            segments: segment_errors(
+                &pw.steps,
+                &pw.waypoints,
+                pw.first_scan_t.filter(|_| cfg.score_from_first_scan),
+            ),
+        })
+        .collect();
     Ok(EvalReport::from_walks(
         schemes.to_vec(),
         floors.iter().map(|f| f.label.clone()).collect(),
         walks,
     )
-    .with_skips(skipped_runs, input_skips))
+    .with_skips(skipped_runs, input_skips)
+    .with_motion(motion))
+}
+
+/// The motion source's error between consecutive waypoints: for each pair `(a, b)` with
+/// `a` at or after `from` (the scoring start), the motion events with `t_a < t <= t_b`
+/// summed (length x heading each: steps or learned displacements, the same sum for both)
+/// against `p_b - p_a`. Returns `(true length, error)` per segment, m; pairs on different
+/// floors are left out.
+pub fn segment_errors(
+    events: &[StepEvent],
+    waypoints: &[Waypoint],
+    from: Option<TimestampMs>,
+) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(waypoints.len().saturating_sub(1));
+    let mut k = 0usize;
+    for pair in waypoints.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        while k < events.len() && events[k].t <= a.t {
+            k += 1;
+        }
+        if from.is_some_and(|f| a.t < f) || a.floor != b.floor || b.t < a.t {
+            continue;
+        }
+        let mut d = wipdr_core::Vector2::zeros();
+        let mut j = k;
+        while j < events.len() && events[j].t <= b.t {
+            d += wipdr_core::angle::step_displacement(events[j].length, events[j].heading);
+            j += 1;
+        }
+        let truth = b.position - a.position;
+        out.push((truth.norm(), (d - truth).norm()));
+    }
+    out
 }
 
 /// The waypoints within `metres` of path (along the waypoints) from the first one.
@@ -656,4 +702,64 @@ pub fn tracks_of(
 /// The true position of a prepared walk at `t` (for plots), from its waypoints.
 pub fn truth_at(walk: &PreparedWalk, t: TimestampMs) -> Option<Point2> {
     wipdr_core::walk::interpolate_waypoints(&walk.waypoints, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wipdr_core::MotionState;
+
+    fn event(t: TimestampMs, length: f64, heading: f64) -> StepEvent {
+        StepEvent {
+            t,
+            length,
+            heading,
+            heading_change: 0.0,
+            period_s: 0.5,
+            motion: MotionState::default(),
+            covariance: None,
+        }
+    }
+
+    fn waypoint(t: TimestampMs, x: f64, y: f64) -> Waypoint {
+        Waypoint {
+            t,
+            position: Point2::new(x, y),
+            floor: None,
+        }
+    }
+
+    /// Each segment sums the events in `(t_a, t_b]`; segments before the scoring start are
+    /// left out.
+    #[test]
+    fn segment_errors_sum_the_events_inside_each_segment() {
+        let north = 0.0;
+        let east = std::f64::consts::FRAC_PI_2;
+        let events = [
+            event(1000, 1.0, north), // at the first waypoint: not in (1000, 3000]
+            event(2000, 2.0, north),
+            event(3000, 1.0, north), // at the second waypoint: in the first segment
+            event(4000, 3.0, east),
+        ];
+        let waypoints = [
+            waypoint(1000, 0.0, 0.0),
+            waypoint(3000, 0.0, 3.0),
+            waypoint(5000, 4.0, 3.0),
+        ];
+        let got = segment_errors(&events, &waypoints, None);
+        assert_eq!(got.len(), 2);
+        assert!(
+            (got[0].0 - 3.0).abs() < 1e-12 && got[0].1.abs() < 1e-12,
+            "{got:?}"
+        );
+        assert!((got[1].0 - 4.0).abs() < 1e-12 && (got[1].1 - 1.0).abs() < 1e-12);
+        let later = segment_errors(&events, &waypoints, Some(2000));
+        assert_eq!(later.len(), 1);
+        assert_eq!(later[0], got[1]);
+        let summary = crate::report::MotionSummary::of(&got);
+        assert_eq!(summary.segments, 2);
+        assert!(
+            (summary.mean_m - 0.5).abs() < 1e-12 && (summary.mean_length_m - 3.5).abs() < 1e-12
+        );
+    }
 }

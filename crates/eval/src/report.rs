@@ -171,6 +171,56 @@ pub struct WalkResult {
     pub score: WalkScore,
 }
 
+/// The motion source's displacement between consecutive waypoints of one test walk against
+/// the truth (the per-segment error of issue 44): scheme-independent, one per walk.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct WalkMotion {
+    /// Floor label.
+    pub floor: String,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold of the walk.
+    pub fold: usize,
+    /// Per segment: the true displacement's length and the error of the motion events'
+    /// summed displacement over the segment, m.
+    pub segments: Vec<(f64, f64)>,
+}
+
+/// Per-segment displacement errors summarised (a floor or pooled).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct MotionSummary {
+    /// Segments scored.
+    pub segments: usize,
+    /// Mean true segment length, m.
+    pub mean_length_m: f64,
+    /// Mean displacement error, m.
+    pub mean_m: f64,
+    /// Median displacement error, m.
+    pub median_m: f64,
+}
+
+impl MotionSummary {
+    /// The summary of `(length, error)` segments; non-finite errors are left out.
+    pub fn of<'a>(segments: impl IntoIterator<Item = &'a (f64, f64)>) -> Self {
+        let kept: Vec<(f64, f64)> = segments
+            .into_iter()
+            .copied()
+            .filter(|(l, e)| l.is_finite() && e.is_finite())
+            .collect();
+        if kept.is_empty() {
+            return Self::default();
+        }
+        let n = kept.len() as f64;
+        let errors: Vec<f64> = kept.iter().map(|&(_, e)| e).collect();
+        Self {
+            segments: kept.len(),
+            mean_length_m: kept.iter().map(|&(l, _)| l).sum::<f64>() / n,
+            mean_m: errors.iter().sum::<f64>() / n,
+            median_m: ErrorStats::from_errors(&errors).p50,
+        }
+    }
+}
+
 /// A whole evaluation: per-walk results and their per-floor and pooled summaries.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct EvalReport {
@@ -190,6 +240,10 @@ pub struct EvalReport {
     /// Per floor label, what its readers skipped, by kind ([`InputSkips`]).
     #[serde(default)]
     pub input_skips: BTreeMap<String, InputSkips>,
+    /// The motion source's per-segment displacement error of every test walk
+    /// ([`WalkMotion`]), in the walks' order.
+    #[serde(default)]
+    pub motion: Vec<WalkMotion>,
 }
 
 impl EvalReport {
@@ -226,7 +280,64 @@ impl EvalReport {
             walks,
             skipped_runs: Vec::new(),
             input_skips: BTreeMap::new(),
+            motion: Vec::new(),
         }
+    }
+
+    /// The report with the motion source's per-segment errors of its walks.
+    pub fn with_motion(mut self, motion: Vec<WalkMotion>) -> Self {
+        self.motion = motion;
+        self
+    }
+
+    /// The motion source's per-segment error per floor (in floor order) and pooled (last,
+    /// labelled `pooled`).
+    pub fn motion_summaries(&self) -> Vec<(String, MotionSummary)> {
+        let mut out: Vec<(String, MotionSummary)> = self
+            .floor_order
+            .iter()
+            .map(|f| {
+                let segs = self
+                    .motion
+                    .iter()
+                    .filter(|m| &m.floor == f)
+                    .flat_map(|m| &m.segments);
+                (f.clone(), MotionSummary::of(segs))
+            })
+            .collect();
+        out.push((
+            "pooled".into(),
+            MotionSummary::of(self.motion.iter().flat_map(|m| &m.segments)),
+        ));
+        out
+    }
+
+    /// The motion source's per-segment displacement error as text, a row per floor and one
+    /// pooled; `source` names it (`steps`, `learned`). Empty without segments.
+    pub fn motion_table(&self, source: &str) -> String {
+        use std::fmt::Write;
+        let rows = self.motion_summaries();
+        let mut out = String::new();
+        if rows.last().is_none_or(|(_, s)| s.segments == 0) {
+            return out;
+        }
+        let _ = writeln!(
+            out,
+            "motion source `{source}`: displacement error between consecutive waypoints (m)"
+        );
+        let _ = writeln!(
+            out,
+            "  {:<28} {:>8} {:>10} {:>8} {:>8}",
+            "floor", "segments", "length", "mean", "median"
+        );
+        for (floor, m) in &rows {
+            let _ = writeln!(
+                out,
+                "  {:<28} {:>8} {:>10.2} {:>8.3} {:>8.3}",
+                floor, m.segments, m.mean_length_m, m.mean_m, m.median_m
+            );
+        }
+        out
     }
 
     /// The report with the runs left out for a missing stream (counted into each summary's
@@ -311,6 +422,10 @@ impl EvalReport {
                 walk
             }).collect::<Vec<_>>(),
             "schemes": self.schemes,
+            "motion": {
+                "source": config.get("odometry").cloned().unwrap_or(serde_json::Value::Null),
+                "summaries": self.motion_summaries().into_iter().collect::<BTreeMap<_, _>>(),
+            },
             "skips": self.skips(),
             "skipped_runs": self.skipped_runs,
             "mode": if config.get("offline").and_then(serde_json::Value::as_bool) == Some(true) {

@@ -214,6 +214,9 @@ pub struct ShardReport {
     /// every floor).
     #[serde(default)]
     pub input_skips: BTreeMap<String, crate::report::InputSkips>,
+    /// Its walks' motion-source segment errors.
+    #[serde(default)]
+    pub motion: Vec<crate::report::WalkMotion>,
 }
 
 impl ShardReport {
@@ -226,6 +229,7 @@ impl ShardReport {
             walks: report.walks,
             skipped_runs: report.skipped_runs,
             input_skips: report.input_skips,
+            motion: report.motion,
         }
     }
 
@@ -389,6 +393,10 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
         .iter()
         .flat_map(|r| r.skipped_runs.iter().cloned())
         .collect();
+    let mut motion: Vec<crate::report::WalkMotion> = reports
+        .iter()
+        .flat_map(|r| r.motion.iter().cloned())
+        .collect();
     let mut walks: Vec<WalkResult> = reports.into_iter().flat_map(|r| r.walks).collect();
     // The unsharded order: walks by (floor, walk id) as `pipeline::prepare` sorts them
     // (ties by fold), each walk's schemes in the order asked for.
@@ -410,9 +418,12 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
             position(&schemes, &r.scheme),
         )
     });
+    // The unsharded order of the motion rows: the prepared walks' (floor, walk, fold).
+    motion.sort_by_cached_key(|m| (position(&labels, &m.floor), m.walk.clone(), m.fold));
     Ok(Merged {
         report: EvalReport::from_walks(schemes, labels, walks)
-            .with_skips(skipped_runs, input_skips),
+            .with_skips(skipped_runs, input_skips)
+            .with_motion(motion),
         config,
         count,
     })

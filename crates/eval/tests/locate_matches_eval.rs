@@ -90,3 +90,19 @@ fn locate_equals_eval_with_the_papers_settings() {
     assert_eq!(cfg, EvalConfig::paper());
     check(&cfg);
 }
+
+/// With the learned odometry the motion events come from the network, live in `locate` and
+/// prepared once in eval: the same errors, causal and offline.
+#[test]
+fn locate_equals_eval_with_learned_odometry() {
+    let cfg = EvalConfig::from_toml("odometry = \"learned\"\n", "test").unwrap();
+    assert_eq!(
+        cfg.positioner.odometry,
+        wipdr_positioning::config::Odometry::Learned
+    );
+    check(&cfg);
+    check(&EvalConfig {
+        offline: true,
+        ..cfg
+    });
+}

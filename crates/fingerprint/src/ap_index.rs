@@ -309,6 +309,7 @@ mod tests {
                 stationary,
                 ..MotionState::default()
             },
+            covariance: None,
         };
         let steps = [step(1_000, true), step(1_500, false), step(9_000, false)];
         assert!(motion_at(&steps, 500, 2_000).stationary); // no step yet

@@ -50,6 +50,7 @@ pub mod distance;
 pub mod error;
 pub mod interpolate;
 pub mod knn;
+pub mod likelihood;
 pub mod matcher;
 pub mod online;
 pub mod query;

@@ -401,6 +401,22 @@ impl ErrorStateEkf {
         M4::from_diagonal(&V4::new(q_pos, q_pos, q_step, q_heading))
     }
 
+    /// A motion event with its own displacement covariance (learned odometry,
+    /// [`StepEvent::covariance`]): the position moves by the displacement as given and the
+    /// predict step adds that covariance to the position block (`F = I`). The step-length and
+    /// heading bias states describe the step model, not this source: they are neither
+    /// applied nor given process noise.
+    fn predict_displacement(&mut self, step: &StepEvent, c: &nalgebra::Matrix2<f64>) {
+        let d = angle::step_displacement(step.length, step.heading);
+        self.position += d;
+        self.odometry += d;
+        let mut q = M4::zeros();
+        q.fixed_view_mut::<2, 2>(0, 0).copy_from(c);
+        let mut x = V4::zeros();
+        kalman::predict(&mut x, &mut self.P, &M4::identity(), &q);
+        self.t = step.t;
+    }
+
     /// The full 4x4 covariance of `[dE, dN, ds, dtheta]`.
     pub fn covariance(&self) -> M4 {
         self.P
@@ -490,6 +506,10 @@ impl Fuser for ErrorStateEkf {
                 Some(s) => self.initialise(step.t, s, self.cfg.init_position_sd_m.powi(2)),
                 None => return,
             }
+        }
+        if let Some(c) = step.displacement_covariance() {
+            self.predict_displacement(step, &c);
+            return;
         }
         let s = (step.length + self.step_bias).max(0.0);
         let theta = angle::wrap_pi(step.heading + self.heading_bias);
@@ -610,6 +630,45 @@ mod tests {
     use crate::synthetic::{obs_at, step};
     use proptest::prelude::*;
 
+    /// A motion event with a covariance moves the position by its displacement, unbiased,
+    /// and adds exactly that covariance to the position block.
+    #[test]
+    fn a_displacement_with_covariance_is_a_predict_step_with_it() {
+        let mut f =
+            ErrorStateEkf::new("ekf", EkfConfig::default(), Adaptation::None, false, None).unwrap();
+        f.on_wifi(&obs_at(0, 1.0, 2.0));
+        let before = f.covariance();
+        let learned = StepEvent {
+            covariance: Some([0.5, 0.1, 0.3]),
+            ..step(1000, 2.0, std::f64::consts::FRAC_PI_2)
+        };
+        f.on_step(&learned);
+        let e = f.estimate().unwrap();
+        assert!((e.position.x - 3.0).abs() < 1e-12 && (e.position.y - 2.0).abs() < 1e-12);
+        let grown = f.covariance() - before;
+        let want = [[0.5, 0.1], [0.1, 0.3]];
+        for (r, row) in want.iter().enumerate() {
+            for (c, w) in row.iter().enumerate() {
+                assert!(
+                    (grown[(r, c)] - w).abs() < 1e-12,
+                    "({r}, {c}) {}",
+                    grown[(r, c)]
+                );
+            }
+        }
+        // the bias states are untouched
+        assert_eq!(grown[(2, 2)], 0.0);
+        assert_eq!(grown[(3, 3)], 0.0);
+        // a covariance that is not positive semi-definite falls back to the step noise
+        let bad = StepEvent {
+            covariance: Some([1.0, 2.0, 1.0]),
+            ..step(2000, 0.7, 0.0)
+        };
+        assert!(bad.displacement_covariance().is_none());
+        f.on_step(&bad);
+        assert!(f.covariance()[(2, 2)] > before[(2, 2)]);
+    }
+
     #[test]
     fn straight_walk_without_wifi_is_dead_reckoning() {
         let mut f =
@@ -714,6 +773,33 @@ mod tests {
                     let mut s = step(t, len, heading);
                     s.motion.turn = [TurnState::Straight, TurnState::Turning, TurnState::PseudoTurning][turn as usize];
                     f.on_step(&s);
+                } else {
+                    f.on_wifi(&obs_at(t, x, y));
+                }
+                prop_assert!(kalman::is_symmetric_pd(&f.covariance()));
+                if let Some(e) = f.estimate() {
+                    prop_assert!(e.position.x.is_finite() && e.position.y.is_finite());
+                }
+            }
+        }
+
+        /// Motion events with any covariance (valid, not positive semi-definite, huge,
+        /// non-finite) mixed with fixes keep the covariance positive definite and the
+        /// estimate finite.
+        #[test]
+        fn covariance_pd_for_any_learned_displacements(
+            inputs in prop::collection::vec(
+                (any::<bool>(), 0.0f64..3.0, -10.0f64..10.0, -1e4f64..1e4, -1e4f64..1e4,
+                 prop::array::uniform3(prop_oneof![-1.0f64..5.0, Just(f64::NAN), Just(1e300)])),
+                1..80),
+        ) {
+            let mut f = ErrorStateEkf::new("x", EkfConfig::default(), Adaptation::None, false,
+                None).unwrap();
+            let mut t = 0;
+            for (is_step, len, heading, x, y, cov) in inputs {
+                t += 1000;
+                if is_step {
+                    f.on_step(&StepEvent { covariance: Some(cov), ..step(t, len, heading) });
                 } else {
                     f.on_wifi(&obs_at(t, x, y));
                 }

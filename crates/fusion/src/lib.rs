@@ -56,7 +56,7 @@
 //! fuser.on_wifi(&fix(0, 0.0, 0.0));                 // initialises at the first fix
 //! for k in 1..=4 {                                  // four steps due north (heading 0)
 //!     fuser.on_step(&StepEvent { t: 500 * k, length: 0.7, heading: 0.0, heading_change: 0.0,
-//!         period_s: 0.5, motion: MotionState::default() });
+//!         period_s: 0.5, motion: MotionState::default(), covariance: None });
 //! }
 //! fuser.on_wifi(&fix(2000, 0.0, 3.0));
 //! let estimate = fuser.estimate().unwrap();

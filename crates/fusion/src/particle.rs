@@ -358,6 +358,19 @@ impl ParticleFilter {
     /// are fetched with one R-tree query; each move is then tested against that short list
     /// (or against the tree when the list is long).
     fn propagate(&mut self, step: &StepEvent, use_walls: bool) {
+        self.scratch.clear();
+        let mut lo = Point2::new(f64::INFINITY, f64::INFINITY);
+        let mut hi = Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+        match step.displacement_covariance() {
+            None => self.move_by_step(step, &mut lo, &mut hi),
+            Some(c) => self.move_by_displacement(step, &c, &mut lo, &mut hi),
+        }
+        self.constrain_by_walls(use_walls, lo, hi);
+    }
+
+    /// Moves every particle by the step with the step model's noise (004 eq. 12) and walks
+    /// its scale and heading offset; `lo` and `hi` grow to hold every move.
+    fn move_by_step(&mut self, step: &StepEvent, lo: &mut Point2, hi: &mut Point2) {
         let c = &self.cfg;
         let (len_n, head_n, pos_n) = (
             normal(c.step_length_sd_m),
@@ -368,9 +381,6 @@ impl ParticleFilter {
             normal(c.heading_offset_walk_deg.to_radians()),
             normal(c.step_scale_walk),
         );
-        self.scratch.clear();
-        let mut lo = Point2::new(f64::INFINITY, f64::INFINITY);
-        let mut hi = Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
         for p in &self.particles {
             let length = (step.length * p.step_scale + self.rng.sample(len_n)).max(0.0);
             let heading = step.heading + p.heading_offset + self.rng.sample(head_n);
@@ -378,8 +388,8 @@ impl ParticleFilter {
                 + angle::step_displacement(length, heading)
                 + Vector2::new(self.rng.sample(pos_n), self.rng.sample(pos_n));
             for q in [p.position, to] {
-                lo = Point2::new(lo.x.min(q.x), lo.y.min(q.y));
-                hi = Point2::new(hi.x.max(q.x), hi.y.max(q.y));
+                *lo = Point2::new(lo.x.min(q.x), lo.y.min(q.y));
+                *hi = Point2::new(hi.x.max(q.x), hi.y.max(q.y));
             }
             self.scratch.push(Particle {
                 position: to,
@@ -388,6 +398,38 @@ impl ParticleFilter {
                 step_scale: (p.step_scale + self.rng.sample(scale_walk)).clamp(0.5, 1.5),
             });
         }
+    }
+
+    /// A motion event with its own covariance `c` (learned odometry,
+    /// [`StepEvent::covariance`]): every particle moves by the displacement plus a draw of
+    /// that covariance (its lower Cholesky factor times two standard normals). The step
+    /// model's per-particle scale and heading offset neither apply nor walk.
+    fn move_by_displacement(
+        &mut self,
+        step: &StepEvent,
+        c: &nalgebra::Matrix2<f64>,
+        lo: &mut Point2,
+        hi: &mut Point2,
+    ) {
+        let d = angle::step_displacement(step.length, step.heading);
+        let l11 = c[(0, 0)].sqrt();
+        let l21 = if l11 > 0.0 { c[(1, 0)] / l11 } else { 0.0 };
+        let l22 = (c[(1, 1)] - l21 * l21).max(0.0).sqrt();
+        let unit = normal(1.0);
+        for p in &self.particles {
+            let (z1, z2) = (self.rng.sample(unit), self.rng.sample(unit));
+            let to = p.position + d + Vector2::new(l11 * z1, l21 * z1 + l22 * z2);
+            for q in [p.position, to] {
+                *lo = Point2::new(lo.x.min(q.x), lo.y.min(q.y));
+                *hi = Point2::new(hi.x.max(q.x), hi.y.max(q.y));
+            }
+            self.scratch.push(Particle { position: to, ..*p });
+        }
+    }
+
+    /// With `use_walls`, zeroes the weight of every particle whose move (from `particles`
+    /// to `scratch`, inside the box `lo`..`hi`) crosses a wall.
+    fn constrain_by_walls(&mut self, use_walls: bool, lo: Point2, hi: Point2) {
         let Some(walls) = self.walls.as_ref().filter(|_| use_walls) else {
             return;
         };
@@ -581,6 +623,39 @@ mod tests {
             n_particles: 200,
             ..PfConfig::default()
         }
+    }
+
+    /// A motion event with a covariance moves the cloud by its displacement with that
+    /// spread: the cloud's mean by the displacement, its covariance grown by about it.
+    #[test]
+    fn a_displacement_with_covariance_moves_the_cloud_with_that_spread() {
+        let cfg = PfConfig {
+            n_particles: 4000,
+            start_spread_m: 0.0,
+            ..PfConfig::default()
+        };
+        let mut f =
+            ParticleFilter::new("pf", cfg, false, None, 5, Some(Point2::new(0.0, 0.0))).unwrap();
+        let learned = StepEvent {
+            covariance: Some([0.8, 0.3, 0.4]),
+            ..step(1000, 5.0, 0.0)
+        };
+        f.on_step(&learned);
+        let cloud = f.particle_cloud().unwrap();
+        let n = cloud.len() as f64;
+        let mean = cloud
+            .iter()
+            .fold(Vector2::zeros(), |m, p| m + p.position.coords)
+            / n;
+        let mut cov = Matrix2::zeros();
+        for p in &cloud {
+            let r = p.position.coords - mean;
+            cov += r * r.transpose() / n;
+        }
+        assert!(mean.x.abs() < 0.1 && (mean.y - 5.0).abs() < 0.1, "{mean}");
+        assert!((cov[(0, 0)] - 0.8).abs() < 0.1, "{cov}");
+        assert!((cov[(0, 1)] - 0.3).abs() < 0.1, "{cov}");
+        assert!((cov[(1, 1)] - 0.4).abs() < 0.1, "{cov}");
     }
 
     #[test]

@@ -20,7 +20,7 @@
 //!     f.on_wifi(&fix(t, x)); // standing still; the 60 m fix is gross
 //! }
 //! f.on_step(&StepEvent { t: 3500, length: 0.7, heading: 0.0, heading_change: 0.0,
-//!     period_s: 0.5, motion: MotionState::default() });
+//!     period_s: 0.5, motion: MotionState::default(), covariance: None });
 //! let p = f.estimate().unwrap().position;
 //! assert!(p.x.abs() < 1.0 && (p.y - 0.7).abs() < 1e-9);
 //! ```
@@ -215,6 +215,7 @@ mod tests {
             heading_change: 0.0,
             period_s: 0.5,
             motion: MotionState::default(),
+            covariance: None,
         }
     }
 

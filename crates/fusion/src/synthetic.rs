@@ -231,6 +231,7 @@ impl SyntheticWalk {
                     speed: class,
                     stationary: false,
                 },
+                covariance: None,
             });
         }
         let truth_at = |t: TimestampMs| -> Point2 {
@@ -382,6 +383,7 @@ pub fn step(t: TimestampMs, length: f64, heading: f64) -> StepEvent {
         heading_change: 0.0,
         period_s: 0.5,
         motion: MotionState::default(),
+        covariance: None,
     }
 }
 

@@ -42,6 +42,7 @@ fn step(t: i64, length: f64, heading: f64) -> StepEvent {
         heading_change: 0.0,
         period_s: 0.5,
         motion: MotionState::default(),
+        covariance: None,
     }
 }
 

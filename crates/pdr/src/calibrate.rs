@@ -444,6 +444,7 @@ mod tests {
                 heading_change: 0.0,
                 period_s: 0.5,
                 motion: MotionState::default(),
+                covariance: None,
             },
             features: StepFeatures {
                 period_s: 0.5,

@@ -630,6 +630,7 @@ impl Pdr {
                 speed: classify_speed(period, &cfg.motion),
                 stationary: stopped,
             },
+            covariance: None,
         };
         StepDetail {
             event,

@@ -43,6 +43,46 @@ pub struct PositionerConfig {
     pub floor: crate::FloorConfig,
     /// Seed of the random schemes (particle filters).
     pub seed: u64,
+    /// The motion source between Wi-Fi fixes ([`Odometry`], `odometry = "steps"` or
+    /// `"learned"`); default `steps`, the better of the two under leave-one-floor-out
+    /// (`docs/results/odometry.md`).
+    pub odometry: Odometry,
+}
+
+/// What moves the walker between Wi-Fi fixes: the motion events the front end hands to the
+/// fuser (`odometry = "steps" | "learned"` in TOML; any other value is refused).
+///
+/// ```
+/// use wipdr_positioning::{PositionerConfig, config::Odometry};
+/// let cfg = PositionerConfig::from_toml("odometry = \"learned\"").unwrap();
+/// assert_eq!(cfg.odometry, Odometry::Learned);
+/// assert_eq!(PositionerConfig::default().odometry, Odometry::Steps);
+/// assert!(PositionerConfig::from_toml("odometry = \"ronin\"").is_err());
+/// ```
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Odometry {
+    /// The PDR's detected steps (length x heading), each scheme with its own step noise.
+    /// The default: between consecutive waypoints of the five ILC floors it errs 1.428 m a
+    /// segment against the learned source's 1.710 m under leave-one-floor-out
+    /// (`odometry-train lofo`, `docs/results/odometry.md`).
+    #[default]
+    Steps,
+    /// The learned inertial odometry ([`wipdr_pdr::odometry`], the shipped weights): one
+    /// displacement a second with its covariance, turned into the map frame by the PDR's
+    /// heading offset (`pdr.heading.map_offset_rad`). The PDR still runs for the matchers'
+    /// motion state; its steps do not move the fuser.
+    Learned,
+}
+
+impl Odometry {
+    /// The name used in configs and reports (`steps`, `learned`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Steps => "steps",
+            Self::Learned => "learned",
+        }
+    }
 }
 
 impl Default for PositionerConfig {
@@ -103,6 +143,7 @@ impl PositionerConfig {
             static_start: None,
             floor: crate::FloorConfig::default(),
             seed: 1,
+            odometry: Odometry::Steps,
         }
     }
 }
@@ -187,6 +228,20 @@ mod tests {
             PositionerConfig::paper().pdr.handling.max_rotation_rad_s,
             None
         );
+    }
+
+    /// The motion source is an enum of two names: anything else is refused naming the field.
+    #[test]
+    fn an_unknown_odometry_is_refused_naming_the_field() {
+        let e = PositionerConfig::from_toml("odometry = \"ronin\"").unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("odometry"), "{text}");
+        assert!(text.contains("ronin"), "{text}");
+        let cfg = PositionerConfig::from_toml("odometry = \"learned\"").unwrap();
+        assert_eq!(cfg.odometry, Odometry::Learned);
+        let text = toml::to_string_pretty(&cfg).unwrap();
+        assert!(text.contains("odometry = \"learned\""), "{text}");
+        assert_eq!(PositionerConfig::paper().odometry, Odometry::Steps);
     }
 
     /// TOML's `nan` would reach serde as null and turn an optional threshold off: refused,

@@ -61,6 +61,7 @@ pub mod sample;
 pub mod site;
 pub mod site_model;
 pub mod smooth;
+pub mod track_format;
 
 pub use config::PositionerConfig;
 pub use error::PositioningError;

@@ -2,10 +2,12 @@
 //! out), [`FusionStage`] (a fuser and its wrappers: events in, estimates out) and the
 //! [`Positioner`] that chains them for one stream.
 
+use crate::config::Odometry;
 use crate::sample::{PressureSample, Sample};
 use crate::{
     FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site,
 };
+use wipdr_core::MotionState;
 use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
@@ -14,12 +16,15 @@ use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
 use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
 use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
+use wipdr_pdr::odometry::{self, LearnedOdometry, OdometryStream};
 use wipdr_pdr::{Pdr, PdrConfig};
 
 /// What the front end made of one sample.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    /// A PDR step ended at this sample.
+    /// A motion event ended at this sample: a PDR step, or with `odometry = "learned"` the
+    /// learned displacement since the previous one with its covariance
+    /// ([`StepEvent::covariance`]).
     Step(StepEvent),
     /// A Wi-Fi scan was matched.
     Fix(WifiObservation),
@@ -34,6 +39,8 @@ pub struct StreamCounts {
     pub out_of_order: u64,
     /// Steps detected.
     pub steps: u64,
+    /// Learned odometry outputs (one a second of IMU; 0 with `odometry = "steps"`).
+    pub odometry_outputs: u64,
     /// Scans received.
     pub scans: u64,
     /// Scans the matcher could not use (no known AP left after filtering, ...).
@@ -57,6 +64,61 @@ pub struct Frontend {
     floors: Option<FloorTracker>,
     fixes_across_floors: bool,
     counts: StreamCounts,
+    /// The learned odometry (`odometry = "learned"`); `None`: steps move the fuser.
+    learned: Option<Box<LearnedMotion>>,
+}
+
+/// The learned motion source of a stream: the streaming network and what turns its outputs
+/// into motion events in the map frame.
+#[derive(Debug)]
+struct LearnedMotion {
+    stream: OdometryStream,
+    /// `pdr.heading.map_offset_rad`: the map frame's heading offset from East-North-Up.
+    map_offset_rad: f64,
+    /// Heading and time of the previous motion event.
+    previous: Option<(f64, TimestampMs)>,
+}
+
+impl LearnedMotion {
+    /// The outputs the stream completed, summed (a gap in the IMU can complete several) into
+    /// one motion event stamped `t` (the sample that completed them, as a step is stamped
+    /// when its detection completes); `None` when there is none.
+    fn take(&mut self, t: TimestampMs, motion: MotionState) -> Option<(StepEvent, u64)> {
+        let mut d = [0.0; 2];
+        let mut c = [0.0; 3];
+        let mut n = 0u64;
+        while let Some(o) = self.stream.pop() {
+            d[0] += o.displacement[0];
+            d[1] += o.displacement[1];
+            for (ci, oc) in c.iter_mut().zip(o.covariance) {
+                *ci += oc;
+            }
+            n += 1;
+        }
+        if n == 0 {
+            return None;
+        }
+        let d = odometry::rotate_heading(d, self.map_offset_rad);
+        let c = odometry::rotate_covariance(c, self.map_offset_rad);
+        let heading = angle::wrap_two_pi(angle::heading_of(Vector2::new(d[0], d[1])));
+        let (heading_change, period_s) = match self.previous {
+            Some((h, t0)) => (angle::wrap_pi(heading - h), (t - t0) as f64 / 1000.0),
+            None => (0.0, n as f64 * odometry::INTERVAL_MS as f64 / 1000.0),
+        };
+        self.previous = Some((heading, t));
+        Some((
+            StepEvent {
+                t,
+                length: d[0].hypot(d[1]),
+                heading,
+                heading_change,
+                period_s,
+                motion,
+                covariance: Some(c),
+            },
+            n,
+        ))
+    }
 }
 
 impl std::fmt::Debug for Frontend {
@@ -101,6 +163,44 @@ impl Frontend {
             floors,
             fixes_across_floors: floor.fixes_across_floors.unwrap_or(false),
             counts: StreamCounts::default(),
+            learned: None,
+        }
+    }
+
+    /// The front end with motion source `odometry`: with [`Odometry::Learned`], the shipped
+    /// network ([`LearnedOdometry::shipped_shared`]) makes the motion events, turned into
+    /// the map frame by `map_offset_rad` (the PDR's `heading.map_offset_rad`); the PDR still
+    /// runs for the matchers' motion state. Errors when the shipped weights cannot be read.
+    pub fn with_odometry(
+        mut self,
+        odometry: Odometry,
+        map_offset_rad: f64,
+    ) -> Result<Self, PositioningError> {
+        self.learned = match odometry {
+            Odometry::Steps => None,
+            Odometry::Learned => {
+                let model = LearnedOdometry::shipped_shared().map_err(|e| {
+                    PositioningError::InvalidConfig {
+                        path: "odometry".into(),
+                        reason: e.to_string(),
+                    }
+                })?;
+                Some(Box::new(LearnedMotion {
+                    stream: OdometryStream::new(model),
+                    map_offset_rad,
+                    previous: None,
+                }))
+            }
+        };
+        Ok(self)
+    }
+
+    /// The motion source of this front end.
+    pub fn odometry(&self) -> Odometry {
+        if self.learned.is_some() {
+            Odometry::Learned
+        } else {
+            Odometry::Steps
         }
     }
 
@@ -151,11 +251,57 @@ impl Frontend {
             return None;
         }
         self.last_t = Some(t);
+        if self.learned.is_some() {
+            return self.push_learned(sample);
+        }
         match sample {
             Sample::RotationVector(s) => self.pdr.push_rotation_vector(s),
             Sample::Gyroscope(s) => self.pdr.push_gyroscope(s),
             Sample::Magnetometer(s) => self.pdr.push_magnetometer(s),
             Sample::Accelerometer(s) => return self.accelerometer(s).map(Event::Step),
+            Sample::Pressure(_) | Sample::Wifi(_) => return self.push_other(sample),
+        }
+        None
+    }
+
+    /// [`Frontend::push`] with the learned motion source: the IMU feeds both the PDR (whose
+    /// steps give the matchers' motion state) and the network, whose outputs are the motion
+    /// events.
+    fn push_learned(&mut self, sample: &Sample) -> Option<Event> {
+        let learned = self.learned.as_mut()?;
+        match sample {
+            Sample::RotationVector(s) => {
+                self.pdr.push_rotation_vector(s);
+                learned.stream.push_rotation_vector(s.t, s.v);
+            }
+            Sample::Gyroscope(s) => {
+                self.pdr.push_gyroscope(s);
+                learned.stream.push_gyroscope(s.t, s.v);
+            }
+            Sample::Accelerometer(s) => {
+                learned.stream.push_accelerometer(s.t, s.v);
+                if let Some(step) = self.pdr.push_accelerometer(s) {
+                    self.counts.steps += 1;
+                    self.last_step = Some((step.t, step.motion));
+                }
+            }
+            Sample::Magnetometer(s) => {
+                self.pdr.push_magnetometer(s);
+                return None;
+            }
+            Sample::Pressure(_) | Sample::Wifi(_) => return self.push_other(sample),
+        }
+        let motion = self.last_step.map(|(_, m)| m).unwrap_or_default();
+        let learned = self.learned.as_mut()?;
+        let (event, outputs) = learned.take(sample.t(), motion)?;
+        self.counts.odometry_outputs += outputs;
+        self.moved += angle::step_displacement(event.length, event.heading);
+        Some(Event::Step(event))
+    }
+
+    /// Pressure and Wi-Fi samples (the same for both motion sources).
+    fn push_other(&mut self, sample: &Sample) -> Option<Event> {
+        match sample {
             Sample::Pressure(p) => {
                 if p.hpa.is_finite() {
                     self.counts.pressure += 1;
@@ -164,10 +310,11 @@ impl Frontend {
                         floors.push_pressure(p);
                     }
                 }
+                None
             }
-            Sample::Wifi(scan) => return self.scan(scan).map(Event::Fix),
+            Sample::Wifi(scan) => self.scan(scan).map(Event::Fix),
+            _ => None,
         }
-        None
     }
 
     fn accelerometer(&mut self, s: &Vec3Sample) -> Option<StepEvent> {
@@ -406,7 +553,8 @@ impl Positioner {
                 config.pdr,
                 matcher.stream(config.query),
                 config.floor,
-            ),
+            )
+            .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)?,
             fusion: FusionStage::new(site, config, config.seed, start)?,
             // A known start is a causal prior the backward run cannot use: no smoothing.
             smoothing: start.is_none().then(|| Smoothing {

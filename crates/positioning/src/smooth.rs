@@ -27,7 +27,7 @@ const BACKWARD_SEED: u64 = 0x6261_636b_7761_7264;
 ///     candidates: vec![Candidate { position: Point2::new(x, y), distance: 1.0, weight: 1.0,
 ///     index: 0, floor: None }], visited: 1, floor: None, building: None };
 /// let steps: Vec<StepEvent> = (1..=20).map(|k| StepEvent { t: 500 * k, length: 0.7,
-///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default() })
+///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default(), covariance: None })
 ///     .collect();
 /// let fixes = vec![fix(0, 0.0, 0.0), fix(5_000, 0.0, 7.0), fix(10_000, 0.0, 14.0)];
 /// let scheme = SchemeConfig::default_for("ekf").unwrap();

@@ -34,6 +34,20 @@ pub struct StoredEstimate {
     pub sd_m: Option<f64>,
 }
 
+impl StoredEstimate {
+    /// The estimate as the track formats write it
+    /// ([`wipdr_positioning::track_format`], shared with `wipdr locate`).
+    pub fn row(&self) -> wipdr_positioning::track_format::TrackRow {
+        wipdr_positioning::track_format::TrackRow {
+            t_ms: self.t_ms,
+            x: self.x,
+            y: self.y,
+            floor: self.floor,
+            sd_m: self.sd_m,
+        }
+    }
+}
+
 /// A session's metadata, as stored.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SessionRecord {

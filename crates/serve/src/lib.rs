@@ -15,7 +15,7 @@
 //! One concern a file: [`router`] (routes and handlers), [`sessions`] (a positioner per
 //! session, stream order, rate budget), [`auth`] (bearer tokens, constant-time), [`db`]
 //! (SQLite), [`metrics`] (Prometheus text), [`openapi`] (the API document), [`page`] (the
-//! live map), [`track`] (track formats), [`errors`] (typed error bodies).
+//! live map), [`errors`] (typed error bodies).
 //!
 //! **Equivalence**: a walk replayed through a session in stream order gives exactly (`f64`
 //! equality) the track `wipdr locate --model` gives for it, at any batch size: the samples are
@@ -42,7 +42,6 @@ pub mod openapi;
 pub mod page;
 pub mod router;
 pub mod sessions;
-pub mod track;
 
 use crate::auth::Tokens;
 use crate::db::{Db, StoredEstimate, Write};

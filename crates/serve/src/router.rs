@@ -17,8 +17,8 @@
 //! | GET | `/v1/live` | every open session of the token, live (Server-Sent Events) |
 
 use crate::auth::Owner;
-use crate::db::{SessionRecord, StoredEstimate, Write};
-use crate::errors::{ApiError, ErrorCode};
+use crate::db::{Db, SessionRecord, StoredEstimate, Write};
+use crate::errors::{ApiError, ErrorCode, ServeError};
 use crate::sessions::{self, Bucket, Session, SessionRef};
 use crate::{AppState, LiveEvent, now_unix_ms, radius_95};
 use axum::body::Bytes;
@@ -38,6 +38,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::broadcast;
 use wipdr_io::sample_stream::PlainSample;
+use wipdr_positioning::track_format::{self, TrackRow};
 use wipdr_positioning::{StreamIdentity, StreamSpec};
 
 type St = State<Arc<AppState>>;
@@ -353,16 +354,19 @@ async fn list_sessions(State(state): St, headers: HeaderMap) -> Result<Json<Valu
     Ok(Json(json!({ "sessions": list })))
 }
 
-/// A stored session of `owner` (404 for none and for another owner's).
-async fn stored(state: &Arc<AppState>, owner: Owner, id: &str) -> Result<SessionRecord, ApiError> {
-    // A close still queued goes in first: the record read is current.
+/// Reads the database off the async threads, after what is queued has gone in (a close or
+/// estimates still queued are part of what is read); a failure is logged and answered as an
+/// internal error.
+async fn read_db<T: Send + 'static>(
+    state: &Arc<AppState>,
+    read: impl FnOnce(&Db) -> Result<T, ServeError> + Send + 'static,
+) -> Result<T, ApiError> {
     state.flush().await.map_err(|e| {
         tracing::error!("{e}");
         ApiError::Internal
     })?;
     let db = state.db.clone();
-    let key = id.to_string();
-    let rec = tokio::task::spawn_blocking(move || db.session(&key))
+    tokio::task::spawn_blocking(move || read(&db))
         .await
         .map_err(|e| {
             tracing::error!("database task failed: {e}");
@@ -371,7 +375,13 @@ async fn stored(state: &Arc<AppState>, owner: Owner, id: &str) -> Result<Session
         .map_err(|e| {
             tracing::error!("{e}");
             ApiError::Internal
-        })?;
+        })
+}
+
+/// A stored session of `owner` (404 for none and for another owner's).
+async fn stored(state: &Arc<AppState>, owner: Owner, id: &str) -> Result<SessionRecord, ApiError> {
+    let key = id.to_string();
+    let rec = read_db(state, move |db| db.session(&key)).await?;
     match rec {
         Some(r) if r.owner == owner => Ok(r),
         _ => Err(ApiError::SessionNotFound(id.to_string())),
@@ -532,30 +542,16 @@ async fn get_track(
             (r, end)
         }
     };
-    // What is queued for this session goes in first: the track is complete.
-    state.flush().await.map_err(|e| {
-        tracing::error!("{e}");
-        ApiError::Internal
-    })?;
-    let db = state.db.clone();
     let key = id.clone();
-    let track = tokio::task::spawn_blocking(move || db.track(&key))
-        .await
-        .map_err(|e| {
-            tracing::error!("database task failed: {e}");
-            ApiError::Internal
-        })?
-        .map_err(|e| {
-            tracing::error!("{e}");
-            ApiError::Internal
-        })?;
+    let track = read_db(&state, move |db| db.track(&key)).await?;
     let frame = state.model.data().geo_frame;
     let format = q.format.as_deref().unwrap_or("geojson");
+    let rows: Vec<TrackRow> = track.iter().map(StoredEstimate::row).collect();
     Ok(match format {
         "geojson" => (
             [(header::CONTENT_TYPE, "application/geo+json")],
-            Json(crate::track::geojson(
-                &track,
+            Json(track_format::geojson(
+                &rows,
                 &record.stream_id,
                 &record.scheme,
                 frame.as_ref(),
@@ -569,7 +565,7 @@ async fn get_track(
         .into_response(),
         "csv" => (
             [(header::CONTENT_TYPE, "text/csv")],
-            crate::track::csv(&track),
+            track_format::csv(&rows),
         )
             .into_response(),
         "ipin" => {
@@ -581,7 +577,7 @@ async fn get_track(
             };
             (
                 [(header::CONTENT_TYPE, "text/csv")],
-                crate::track::ipin(&track, &frame, end),
+                track_format::ipin(&rows, &frame, end),
             )
                 .into_response()
         }

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{A, B, Http, fixture_samples, start};
+use common::{A, B, Http, fixture_samples, read_stream_to_end, read_stream_until, start};
 use hyper::{Method, StatusCode};
 use serde_json::{Value, json};
 use std::io::{Read, Write};
@@ -358,30 +358,15 @@ async fn idle_sessions_are_closed_and_keep_their_track() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_live_stream_carries_a_sessions_estimates_to_its_owner_only() {
-    use http_body_util::BodyExt;
     let dir = tempfile::tempdir().unwrap();
     let server = start(&dir.path().join("t.sqlite"), fast_config()).await;
     let http = Http::new(server.addr);
     let samples = fixture_samples();
     let id = http.open(A, "ekf", "live phone").await;
     // Subscribe (A's live stream, and the session's own) before posting.
-    let client: hyper_util::client::legacy::Client<_, http_body_util::Full<hyper::body::Bytes>> =
-        hyper_util::client::legacy::Client::builder(hyper_util::rt::TokioExecutor::new())
-            .build_http();
-    let sse = |path: String, token: &'static str| {
-        let client = client.clone();
-        let uri = format!("http://{}{path}", server.addr);
-        async move {
-            let req = hyper::Request::get(uri)
-                .header("authorization", format!("Bearer {token}"))
-                .body(http_body_util::Full::default())
-                .unwrap();
-            client.request(req).await.unwrap()
-        }
-    };
-    let live_a = sse("/v1/live".into(), A).await;
-    let events = sse(format!("/v1/sessions/{id}/events"), A).await;
-    let live_b = sse("/v1/live".into(), B).await;
+    let live_a = http.stream("/v1/live", A).await;
+    let events = http.stream(&format!("/v1/sessions/{id}/events"), A).await;
+    let live_b = http.stream("/v1/live", B).await;
     assert_eq!(live_a.status(), StatusCode::OK);
     assert_eq!(events.status(), StatusCode::OK);
     assert_eq!(live_a.headers()["content-type"], "text/event-stream");
@@ -393,24 +378,8 @@ async fn the_live_stream_carries_a_sessions_estimates_to_its_owner_only() {
         .json(Method::DELETE, &format!("/v1/sessions/{id}"), Some(A), None)
         .await;
     assert_eq!(s, StatusCode::OK);
-    // Read a stream until its `closed` event.
-    async fn read_until_closed(resp: hyper::Response<hyper::body::Incoming>) -> String {
-        let mut body = resp.into_body();
-        let mut text = String::new();
-        while !text.contains("event: closed") {
-            match tokio::time::timeout(Duration::from_secs(30), body.frame()).await {
-                Ok(Some(Ok(f))) => {
-                    if let Some(d) = f.data_ref() {
-                        text.push_str(&String::from_utf8_lossy(d));
-                    }
-                }
-                _ => break,
-            }
-        }
-        text
-    }
     for resp in [live_a, events] {
-        let text = read_until_closed(resp).await;
+        let text = read_stream_until(resp, |t| t.contains("event: closed")).await;
         let estimate = text
             .split("\n\n")
             .find(|b| b.contains("event: estimate"))
@@ -424,21 +393,12 @@ async fn the_live_stream_carries_a_sessions_estimates_to_its_owner_only() {
     }
     // B's stream got nothing of A's session: stop the server, which ends the stream.
     server.shutdown().await;
-    let text = String::from_utf8_lossy(
-        &live_b
-            .into_body()
-            .collect()
-            .await
-            .map(|b| b.to_bytes())
-            .unwrap_or_default(),
-    )
-    .into_owned();
+    let text = read_stream_to_end(live_b).await;
     assert!(!text.contains(&id), "{text}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_live_stream_opened_mid_walk_starts_with_each_open_sessions_latest_estimate() {
-    use http_body_util::BodyExt;
     let dir = tempfile::tempdir().unwrap();
     let server = start(&dir.path().join("t.sqlite"), fast_config()).await;
     let http = Http::new(server.addr);
@@ -450,34 +410,13 @@ async fn a_live_stream_opened_mid_walk_starts_with_each_open_sessions_latest_est
     assert_eq!(s, StatusCode::OK);
     let latest = v["estimate"].clone();
     assert!(latest.is_object(), "{v}");
-    let client: hyper_util::client::legacy::Client<_, http_body_util::Full<hyper::body::Bytes>> =
-        hyper_util::client::legacy::Client::builder(hyper_util::rt::TokioExecutor::new())
-            .build_http();
-    let sse = |token: &'static str| {
-        let req = hyper::Request::get(format!("http://{}/v1/live", server.addr))
-            .header("authorization", format!("Bearer {token}"))
-            .body(http_body_util::Full::default())
-            .unwrap();
-        client.request(req)
-    };
-    let live_a = sse(A).await.unwrap();
-    let live_b = sse(B).await.unwrap();
+    let live_a = http.stream("/v1/live", A).await;
+    let live_b = http.stream("/v1/live", B).await;
     // The first event A's map reads is the walking phone where it is now, before any new
     // batch; the session without an estimate sends nothing.
-    let mut body = live_a.into_body();
-    let mut text = String::new();
-    while !text.contains("\n\n") {
-        match tokio::time::timeout(Duration::from_secs(30), body.frame()).await {
-            Ok(Some(Ok(f))) => {
-                if let Some(d) = f.data_ref() {
-                    text.push_str(&String::from_utf8_lossy(d));
-                }
-            }
-            other => panic!("no snapshot event: {other:?} after {text:?}"),
-        }
-    }
+    let text = read_stream_until(live_a, |t| t.contains("\n\n")).await;
     let first = text.split("\n\n").next().unwrap();
-    assert!(first.contains("event: estimate"), "{first}");
+    assert!(first.contains("event: estimate"), "{text:?}");
     let data: Value = serde_json::from_str(
         first
             .lines()
@@ -492,15 +431,7 @@ async fn a_live_stream_opened_mid_walk_starts_with_each_open_sessions_latest_est
     assert!(!text.contains(&quiet), "{text}");
     // B's map gets no snapshot of A's phones.
     server.shutdown().await;
-    let text_b = String::from_utf8_lossy(
-        &live_b
-            .into_body()
-            .collect()
-            .await
-            .map(|b| b.to_bytes())
-            .unwrap_or_default(),
-    )
-    .into_owned();
+    let text_b = read_stream_to_end(live_b).await;
     assert!(!text_b.contains(&id), "{text_b}");
 }
 

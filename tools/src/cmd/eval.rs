@@ -249,6 +249,10 @@ fn evaluate_items(
         }
     );
     print!("{}", report.table());
+    let motion = report.motion_table(cfg.positioner.odometry.name());
+    if !motion.is_empty() {
+        print!("\n{motion}");
+    }
     let skips = report.skips_table();
     if !skips.is_empty() {
         print!("\n{skips}");
@@ -303,6 +307,14 @@ fn run_merge(parts: &[PathBuf], json: &Path) -> Result<()> {
         merged.report.floor_order.len()
     );
     print!("{}", merged.report.table());
+    let source = merged
+        .config
+        .get("odometry")
+        .and_then(serde_json::Value::as_str);
+    let motion = merged.report.motion_table(source.unwrap_or("steps"));
+    if !motion.is_empty() {
+        print!("\n{motion}");
+    }
     let skips = merged.report.skips_table();
     if !skips.is_empty() {
         print!("\n{skips}");

@@ -40,6 +40,7 @@ use wipdr_core::{GeoFrame, Walk};
 use wipdr_eval::pipeline;
 use wipdr_positioning::PositionEstimate;
 use wipdr_positioning::site_model::SiteModel;
+use wipdr_positioning::track_format;
 
 /// Output format of `wipdr locate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -63,9 +64,6 @@ impl Format {
         }
     }
 }
-
-/// Rows per second of [`Format::Ipin`].
-pub const IPIN_RATE_HZ: i64 = 2;
 
 /// Arguments of `wipdr locate`.
 #[derive(Debug, clap::Args)]
@@ -304,175 +302,22 @@ pub fn write_track(
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut out = std::io::BufWriter::new(file);
-    match format {
-        Format::Csv => write_csv(&mut out, track)?,
-        Format::Geojson => write_geojson(&mut out, track, walk, scheme, frame)?,
+    let rows = track_format::rows_of(track);
+    let text = match format {
+        Format::Csv => track_format::csv(&rows),
+        Format::Geojson => format!("{}\n", track_format::geojson(&rows, walk, scheme, frame)),
         Format::Ipin => {
             let Some(frame) = frame else {
                 bail!(
                     "--format ipin needs latitude/longitude: the data has no WGS84 frame (IPIN logfiles have one)"
                 );
             };
-            write_ipin(&mut out, track, frame, end)?
+            track_format::ipin(&rows, frame, end)
         }
-    }
+    };
+    out.write_all(text.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
     out.flush()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
-}
-
-fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
-    v.map(|v| v.to_string()).unwrap_or_default()
-}
-
-/// Writes the CSV track (full precision: `f64` round-trips).
-pub fn write_csv(out: &mut impl Write, track: &[PositionEstimate]) -> Result<()> {
-    writeln!(out, "t_ms,x,y,floor,sd_m")?;
-    for e in track {
-        writeln!(
-            out,
-            "{},{},{},{},{}",
-            e.t,
-            e.position.x,
-            e.position.y,
-            opt(e.floor),
-            opt(e.sd_m())
-        )?;
-    }
-    Ok(())
-}
-
-/// The track at [`IPIN_RATE_HZ`]: a row at every multiple of the period from the first
-/// estimate to `end` (the walk's last sample; the last estimate when `None`), each the latest
-/// estimate at or before its time.
-pub fn at_rate(
-    track: &[PositionEstimate],
-    period_ms: i64,
-    end: Option<wipdr_core::TimestampMs>,
-) -> Vec<PositionEstimate> {
-    let (Some(first), Some(last)) = (track.first(), track.last()) else {
-        return Vec::new();
-    };
-    let period = period_ms.max(1);
-    let end = end.unwrap_or(last.t).max(last.t);
-    let mut t = first.t.div_euclid(period) * period;
-    if t < first.t {
-        t += period;
-    }
-    let mut out = Vec::new();
-    let mut j = 0usize;
-    while t <= end {
-        while j + 1 < track.len() && track[j + 1].t <= t {
-            j += 1;
-        }
-        out.push(PositionEstimate { t, ..track[j] });
-        t += period;
-    }
-    out
-}
-
-/// Writes `t_s,lat,lon,floor` at [`IPIN_RATE_HZ`] (the IPIN competition's format; `floor`
-/// empty where unknown).
-pub fn write_ipin(
-    out: &mut impl Write,
-    track: &[PositionEstimate],
-    frame: &wipdr_core::GeoFrame,
-    end: Option<wipdr_core::TimestampMs>,
-) -> Result<()> {
-    writeln!(out, "t_s,lat,lon,floor")?;
-    for e in at_rate(track, 1000 / IPIN_RATE_HZ, end) {
-        let (lat, lon) = frame.to_lat_lon(e.position);
-        writeln!(
-            out,
-            "{:.3},{:.9},{:.9},{}",
-            e.t as f64 / 1000.0,
-            lat,
-            lon,
-            opt(e.floor)
-        )?;
-    }
-    Ok(())
-}
-
-/// Writes the track as a GeoJSON Feature (LineString): longitude/latitude (RFC 7946) where
-/// `frame` is given, else the floor's metres.
-pub fn write_geojson(
-    out: &mut impl Write,
-    track: &[PositionEstimate],
-    walk: &str,
-    scheme: &str,
-    frame: Option<&GeoFrame>,
-) -> Result<()> {
-    let coordinates: Vec<[f64; 2]> = track
-        .iter()
-        .map(|e| match frame {
-            Some(f) => {
-                let (lat, lon) = f.to_lat_lon(e.position);
-                [lon, lat]
-            }
-            None => [e.position.x, e.position.y],
-        })
-        .collect();
-    let times: Vec<i64> = track.iter().map(|e| e.t).collect();
-    let floors: Vec<Option<i32>> = track.iter().map(|e| e.floor).collect();
-    let radii: Vec<Option<f64>> = track.iter().map(|e| e.sd_m()).collect();
-    let frame_note = if frame.is_some() {
-        "WGS84 longitude, latitude"
-    } else {
-        "floor metres (x east, y north, as the floor plan)"
-    };
-    let feature = serde_json::json!({
-        "type": "Feature",
-        "properties": {
-            "walk": walk,
-            "scheme": scheme,
-            "frame": frame_note,
-            "t_ms": times,
-            "floor": floors,
-            "sd_m": radii,
-        },
-        "geometry": { "type": "LineString", "coordinates": coordinates },
-    });
-    serde_json::to_writer(&mut *out, &feature)?;
-    writeln!(out)?;
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use wipdr_core::Point2;
-
-    fn est(t: i64, x: f64) -> PositionEstimate {
-        PositionEstimate {
-            t,
-            position: Point2::new(x, 0.0),
-            floor: Some(0),
-            covariance: None,
-        }
-    }
-
-    #[test]
-    fn two_hertz_rows_take_the_latest_estimate() {
-        let track = [est(120, 1.0), est(700, 2.0), est(1_400, 3.0)];
-        let rows = at_rate(&track, 500, Some(2_100));
-        let got: Vec<(i64, f64)> = rows.iter().map(|e| (e.t, e.position.x)).collect();
-        assert_eq!(
-            got,
-            vec![(500, 1.0), (1_000, 2.0), (1_500, 3.0), (2_000, 3.0)]
-        );
-        assert!(at_rate(&[], 500, None).is_empty());
-    }
-
-    #[test]
-    fn ipin_rows_are_in_degrees() {
-        let frame = wipdr_core::GeoFrame::new(49.46, 11.11).unwrap();
-        let mut out = Vec::new();
-        write_ipin(&mut out, &[est(0, 0.0)], &frame, Some(400)).unwrap();
-        let text = String::from_utf8(out).unwrap();
-        assert_eq!(
-            text,
-            "t_s,lat,lon,floor\n0.000,49.460000000,11.110000000,0\n"
-        );
-    }
 }

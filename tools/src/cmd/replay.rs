@@ -105,6 +105,10 @@ pub struct Args {
     /// Write the summary (counts, latency percentiles, server memory) as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Start every phone at once instead of spreading their starts evenly over one batch
+    /// interval (the default when paced: phones in the field are out of phase).
+    #[arg(long)]
+    pub no_stagger: bool,
 }
 
 /// One walk ready to send: the session request and the batches.
@@ -243,10 +247,23 @@ struct PhoneSettings {
     keep_open: bool,
 }
 
+/// How long phone `i` of `phones` waits before opening its session, when paced: the phones
+/// start spread evenly over one batch interval, as phones in a building are out of phase
+/// with each other (all of them sending in the same instant would measure a burst, not a
+/// load). Zero unpaced (`speed` 0), with `stagger` off, or for one phone.
+fn start_offset(i: usize, phones: usize, batch_ms: i64, speed: f64, stagger: bool) -> Duration {
+    if !stagger || speed <= 0.0 || phones < 2 || batch_ms <= 0 {
+        return Duration::ZERO;
+    }
+    let share = i as f64 / phones as f64;
+    Duration::try_from_secs_f64(share * batch_ms as f64 / 1000.0 / speed).unwrap_or(Duration::ZERO)
+}
+
 async fn phone(
     ctx: Arc<Ctx>,
     walk: Arc<Prepared>,
     n: usize,
+    offset: Duration,
     args: Arc<PhoneSettings>,
 ) -> PhoneResult {
     let PhoneSettings {
@@ -256,6 +273,7 @@ async fn phone(
         format,
         keep_open,
     } = &*args;
+    tokio::time::sleep(offset).await;
     let mut r = PhoneResult::default();
     let mut create = walk.create.clone();
     if n > 0 {
@@ -488,9 +506,10 @@ pub fn run(args: Args) -> Result<()> {
         for i in 0..phones {
             let walk = prepared[i % prepared.len()].clone();
             let (ctx, sem, shared) = (ctx.clone(), sem.clone(), shared.clone());
+            let offset = start_offset(i, phones, args.batch_ms, args.speed, !args.no_stagger);
             tasks.push(tokio::spawn(async move {
                 let _permit = sem.acquire_owned().await;
-                phone(ctx, walk, i / walks, shared).await
+                phone(ctx, walk, i / walks, offset, shared).await
             }));
         }
         // The peak: the server's memory while every phone still has its session open is read
@@ -590,4 +609,28 @@ pub fn run(args: Args) -> Result<()> {
         bail!("{} samples were not accepted", sent - accepted);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paced_phones_start_spread_evenly_over_one_batch_interval() {
+        let offsets: Vec<Duration> = (0..4)
+            .map(|i| start_offset(i, 4, 1000, 1.0, true))
+            .collect();
+        let ms: Vec<u128> = offsets.iter().map(Duration::as_millis).collect();
+        assert_eq!(ms, [0, 250, 500, 750]);
+        // Twice real time: half the interval's wall time.
+        assert_eq!(start_offset(1, 2, 1000, 2.0, true).as_millis(), 250);
+    }
+
+    #[test]
+    fn unpaced_unstaggered_or_single_phones_start_at_once() {
+        assert_eq!(start_offset(3, 4, 1000, 0.0, true), Duration::ZERO);
+        assert_eq!(start_offset(3, 4, 1000, 1.0, false), Duration::ZERO);
+        assert_eq!(start_offset(0, 1, 1000, 1.0, true), Duration::ZERO);
+        assert_eq!(start_offset(1, 2, 0, 1.0, true), Duration::ZERO);
+    }
 }

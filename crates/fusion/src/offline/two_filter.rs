@@ -135,6 +135,7 @@ mod tests {
             heading_change: change,
             period_s: 0.5,
             motion: MotionState::default(),
+            covariance: None,
         }
     }
 

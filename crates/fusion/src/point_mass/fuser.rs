@@ -8,6 +8,12 @@ use super::{NO_CELL, PointMassFilter};
 use crate::walkable::CellClass;
 use crate::{Estimate, Fuser};
 
+/// Most blur passes one motion event with its own covariance may ask for: 64 passes of
+/// `0.5 cell²` (32 m² on the default 1 m lattice, a 5.7 m standard deviation in one event).
+/// The shipped network's variances are at most about 400 m² a second (`LOG_VAR_RANGE` of
+/// `wipdr_pdr::odometry`); the cap bounds an event's cost whatever the input says.
+const MAX_EVENT_BLURS: f64 = 64.0;
+
 impl Fuser for PointMassFilter {
     fn name(&self) -> &'static str {
         "pmf"
@@ -86,7 +92,14 @@ impl PointMassFilter {
             return None;
         }
         let h = self.cfg.cell_m;
-        self.pending_drift += self.cfg.drift_m2_per_step;
+        // A motion event with its own covariance (learned odometry) blurs by its mean
+        // per-axis variance instead of the step model's drift, at most MAX_EVENT_BLURS
+        // passes (each a lattice sweep) whatever the covariance says.
+        self.pending_drift += step
+            .displacement_covariance()
+            .map_or(self.cfg.drift_m2_per_step, |c| {
+                (0.5 * c.trace()).min(MAX_EVENT_BLURS * 0.5 * h * h)
+            });
         let mut blurs = 0;
         while self.pending_drift >= 0.5 * h * h {
             self.blur();

@@ -36,7 +36,7 @@ pub const MAX_HEADING_HYPOTHESES: usize = 16;
 /// for k in 1..=40 {
 ///     // PDR says north; the fixes say the walk heads 10 degrees east of north.
 ///     f.on_step(&StepEvent { t: 500 * k, length: 0.7, heading: 0.0, heading_change: 0.0,
-///         period_s: 0.5, motion: MotionState::default() });
+///         period_s: 0.5, motion: MotionState::default(), covariance: None });
 ///     if k % 10 == 0 {
 ///         let d = 0.7 * k as f64;
 ///         f.on_wifi(&fix(500 * k, d * 10f64.to_radians().sin(), d * 10f64.to_radians().cos()));

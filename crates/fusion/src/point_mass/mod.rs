@@ -53,7 +53,7 @@
 //! f.on_wifi(&fix(0, 10.0, 10.0));
 //! for k in 1..=10 {
 //!     f.on_step(&StepEvent { t: 500 * k, length: 0.7, heading: 0.0, heading_change: 0.0,
-//!         period_s: 0.5, motion: MotionState::default() });
+//!         period_s: 0.5, motion: MotionState::default(), covariance: None });
 //! }
 //! f.on_wifi(&fix(6000, 10.0, 17.0));
 //! let p = f.estimate().unwrap().position;

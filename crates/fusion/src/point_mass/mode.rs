@@ -171,15 +171,17 @@ impl PointMassFilter {
         let (a0, a1, b0, b1) = self.active;
         let (x0, x1) = (cc.saturating_sub(k).max(a0), (cc + k).min(a1));
         let (y0, y1) = (cr.saturating_sub(k).max(b0), (cr + k).min(b1));
+        // `offset_of(i)` without its division: the same centres, the same bits, each
+        // column's x computed once.
+        let xs: Vec<f64> = (x0..=x1).map(|col| self.lattice.centre_x(col)).collect();
         for r in y0..=y1 {
-            for col in x0..=x1 {
-                let i = r * nx + col;
-                let p = self.prob[i];
+            let y = self.lattice.centre_y(r);
+            let row = &self.prob[r * nx + x0..=r * nx + x1];
+            for (&x, &p) in xs.iter().zip(row) {
                 if p <= 0.0 {
                     continue;
                 }
-                // `offset_of(i)` without its division: the same centre, the same bits.
-                let o = self.lattice.centre(col, r).coords;
+                let o = Vector2::new(x, y);
                 if radius > 0.0 && (o - c).norm() > radius {
                     continue;
                 }
@@ -195,16 +197,20 @@ impl PointMassFilter {
         let nx = self.lattice.cols();
         let (x0, x1, y0, y1) = self.active;
         let (mut sxx, mut sxy, mut syy, mut w) = (0.0, 0.0, 0.0, 0.0);
-        // The cell centres' offsets from `centre`, row by row (the same subtractions as
-        // `offset_of(i) - centre`, without a division per cell).
+        // The cell centres' offsets from `centre` (the same subtractions as
+        // `offset_of(i) - centre`, without a division per cell): each column's x offset once,
+        // each row's y offset once, then the cells in row-major order as before, so the sums
+        // keep their bits.
+        let dxs: Vec<f64> = (x0..=x1)
+            .map(|col| self.lattice.centre_x(col) - centre.x)
+            .collect();
         for r in y0..=y1 {
             let row = &self.prob[r * nx + x0..=r * nx + x1];
             let dy = self.lattice.centre_y(r) - centre.y;
-            for (col, &p) in (x0..=x1).zip(row) {
+            for (&dx, &p) in dxs.iter().zip(row) {
                 if p <= 0.0 {
                     continue;
                 }
-                let dx = self.lattice.centre_x(col) - centre.x;
                 sxx += p * dx * dx;
                 sxy += p * dx * dy;
                 syy += p * dy * dy;

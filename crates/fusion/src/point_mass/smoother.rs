@@ -76,7 +76,7 @@ impl PointMassFilter {
     /// let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
     ///     candidates: vec![], visited: 0, floor: None, building: None };
     /// let steps: Vec<StepEvent> = (1..=20).map(|k| StepEvent { t: 500 * k, length: 0.7,
-    ///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default() })
+    ///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default(), covariance: None })
     ///     .collect();
     /// let fixes = vec![fix(0, 0.0, 0.0), fix(5_000, 0.0, 7.0), fix(10_000, 0.0, 14.0)];
     /// let track = f.smooth_walk(&steps, &fixes).unwrap();

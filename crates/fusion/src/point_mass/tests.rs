@@ -25,6 +25,7 @@ fn step(t: TimestampMs, heading: f64) -> StepEvent {
         heading_change: 0.0,
         period_s: 0.5,
         motion: MotionState::default(),
+        covariance: None,
     }
 }
 
@@ -783,4 +784,25 @@ fn agreeing_fixes_reset_nothing() {
     }
     let (fast, slow) = f.evidence_means.unwrap();
     assert!(fast >= slow, "fast {fast} slow {slow}");
+}
+
+/// A motion event with a covariance blurs the lattice by its mean per-axis variance, not by
+/// the step model's drift: `apply_step` reports the blurs it did (0.5 cell² each).
+#[test]
+fn a_displacement_with_covariance_blurs_by_its_variance() {
+    let run = |covariance: Option<[f64; 3]>| {
+        let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
+        f.on_wifi(&fix(0, 0.0, 0.0));
+        let event = StepEvent {
+            covariance,
+            ..step(1000, 0.0)
+        };
+        f.apply_step(&event).unwrap()
+    };
+    // default drift 0.05 m² a step: no blur yet on a 1 m lattice
+    assert_eq!(run(None), 0);
+    // mean variance (2.2 + 1.8) / 2 = 2 m²: four blurs of 0.5 m²
+    assert_eq!(run(Some([2.2, 0.1, 1.8])), 4);
+    // the largest usable covariance: at most MAX_EVENT_BLURS passes
+    assert_eq!(run(Some([1e6, 0.0, 1e6])), 64);
 }

@@ -62,7 +62,7 @@ pub struct Window {
 
 /// Linear interpolation of a sorted 3-vector stream at time `t` (held at the ends); `None`
 /// when the stream is empty. `cursor` walks forward with increasing `t`.
-fn interp3(
+pub(crate) fn interp3(
     samples: &[(TimestampMs, [f64; 3])],
     t: TimestampMs,
     cursor: &mut usize,
@@ -89,7 +89,7 @@ fn interp3(
     ])
 }
 
-fn finite3(v: [f64; 3]) -> bool {
+pub(crate) fn finite3(v: [f64; 3]) -> bool {
     v.iter().all(|c| c.is_finite())
 }
 
@@ -137,15 +137,10 @@ impl ImuGrid {
             while cr + 1 < rv.len() && rv[cr + 1].0 <= t {
                 cr += 1;
             }
-            let q: UnitQuaternion<f64> = rv[cr].1;
-            let a = interp3(&acc, t, &mut ca).unwrap_or([0.0, 0.0, GRAVITY]);
-            let g = interp3(&gyr, t, &mut cg).unwrap_or([0.0; 3]);
-            let ae = q * Vector3::new(a[0], a[1], a[2]);
-            let ge = q * Vector3::new(g[0], g[1], g[2]);
-            grid.acc
-                .push([ae.x as f32, ae.y as f32, (ae.z - GRAVITY) as f32]);
-            grid.gyro.push([ge.x as f32, ge.y as f32, ge.z as f32]);
-            grid.heading.push(heading_of(&q));
+            let (a, g, h) = grid_sample(&rv[cr].1, &acc, &gyr, t, &mut ca, &mut cg);
+            grid.acc.push(a);
+            grid.gyro.push(g);
+            grid.heading.push(h);
         }
         Some(grid)
     }
@@ -172,22 +167,12 @@ impl ImuGrid {
             return None;
         }
         let start = end + 1 - WINDOW;
-        let psi = self.heading[end];
-        let (s, c) = (psi.sin() as f32, psi.cos() as f32);
-        let mut data = vec![0.0f32; CHANNELS * WINDOW];
-        for k in 0..WINDOW {
-            for (off, v) in [(0usize, self.acc[start + k]), (3, self.gyro[start + k])] {
-                // forward = (sin psi, cos psi), right = (cos psi, -sin psi) in (E, N)
-                data[off * WINDOW + k] = v[0] * s + v[1] * c;
-                data[(off + 1) * WINDOW + k] = v[0] * c - v[1] * s;
-                data[(off + 2) * WINDOW + k] = v[2];
-            }
-        }
-        Some(Window {
-            t_end: self.time(end),
-            heading: psi,
-            data,
-        })
+        Some(build_window(
+            &self.acc[start..=end],
+            &self.gyro[start..=end],
+            self.heading[end],
+            self.time(end),
+        ))
     }
 
     /// Every window at the output rate: last samples `WINDOW - 1`, `WINDOW - 1 + STRIDE`, ...
@@ -196,6 +181,56 @@ impl ImuGrid {
             .step_by(STRIDE)
             .filter_map(|e| self.window(e))
             .collect()
+    }
+}
+
+/// One grid sample at time `t`: the acceleration (gravity removed from `Up`) and angular
+/// rate interpolated at `t` ([`interp3`]; a missing stream gives gravity alone and zero
+/// rates) turned into ENU by the orientation `q`, and the phone heading of `q`. The one
+/// computation of [`ImuGrid::from_walk`] and the streaming
+/// [`OdometryStream`](super::stream::OdometryStream).
+pub(crate) fn grid_sample(
+    q: &UnitQuaternion<f64>,
+    acc: &[(TimestampMs, [f64; 3])],
+    gyr: &[(TimestampMs, [f64; 3])],
+    t: TimestampMs,
+    ca: &mut usize,
+    cg: &mut usize,
+) -> ([f32; 3], [f32; 3], f64) {
+    let a = interp3(acc, t, ca).unwrap_or([0.0, 0.0, GRAVITY]);
+    let g = interp3(gyr, t, cg).unwrap_or([0.0; 3]);
+    let ae = q * Vector3::new(a[0], a[1], a[2]);
+    let ge = q * Vector3::new(g[0], g[1], g[2]);
+    (
+        [ae.x as f32, ae.y as f32, (ae.z - GRAVITY) as f32],
+        [ge.x as f32, ge.y as f32, ge.z as f32],
+        heading_of(q),
+    )
+}
+
+/// The window over `WINDOW` consecutive grid samples (`acc`, `gyro` of that length) turned
+/// about `Up` by the heading `psi` of its last one (see the module docs); the one
+/// computation of [`ImuGrid::window`] and the streaming path.
+pub(crate) fn build_window(
+    acc: &[[f32; 3]],
+    gyro: &[[f32; 3]],
+    psi: f64,
+    t_end: TimestampMs,
+) -> Window {
+    let (s, c) = (psi.sin() as f32, psi.cos() as f32);
+    let mut data = vec![0.0f32; CHANNELS * WINDOW];
+    for (k, (a, g)) in acc.iter().zip(gyro).take(WINDOW).enumerate() {
+        for (off, v) in [(0usize, a), (3, g)] {
+            // forward = (sin psi, cos psi), right = (cos psi, -sin psi) in (E, N)
+            data[off * WINDOW + k] = v[0] * s + v[1] * c;
+            data[(off + 1) * WINDOW + k] = v[0] * c - v[1] * s;
+            data[(off + 2) * WINDOW + k] = v[2];
+        }
+    }
+    Window {
+        t_end,
+        heading: psi,
+        data,
     }
 }
 

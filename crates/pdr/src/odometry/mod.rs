@@ -10,6 +10,8 @@
 //! - [`LearnedOdometry`]: windows -> [`OdometryOutput`]s (world-frame displacement over the
 //!   last second and its 2x2 covariance), and the displacement over any time span
 //!   ([`span_displacement`]), as the training loss integrates it over waypoint segments.
+//! - [`stream`]: the same outputs from a live stream, samples pushed one at a time
+//!   ([`OdometryStream`]).
 //!
 //! Headings: the displacement comes out in the rotation vector's East-North-Up frame; a
 //! floor's map frame differs from it by the same heading offset that the step model's
@@ -18,6 +20,9 @@
 
 pub mod features;
 pub mod model;
+pub mod stream;
+
+pub use stream::OdometryStream;
 
 use features::{GRID_MS, ImuGrid, STRIDE, Window, local_to_world};
 use model::Network;
@@ -73,6 +78,21 @@ impl LearnedOdometry {
     /// The odometry of the shipped weights ([`SHIPPED_WEIGHTS`]).
     pub fn shipped() -> Result<Self, OdometryError> {
         Self::from_safetensors(SHIPPED_WEIGHTS)
+    }
+
+    /// The shipped weights parsed once per process and shared between streams (a
+    /// [`crate::odometry::OdometryStream`] each).
+    pub fn shipped_shared() -> Result<std::sync::Arc<Self>, OdometryError> {
+        static SHIPPED: std::sync::OnceLock<Result<std::sync::Arc<LearnedOdometry>, String>> =
+            std::sync::OnceLock::new();
+        SHIPPED
+            .get_or_init(|| {
+                Self::shipped()
+                    .map(std::sync::Arc::new)
+                    .map_err(|e| e.to_string())
+            })
+            .clone()
+            .map_err(OdometryError::Format)
     }
 
     /// The odometry of a safetensors weight file's bytes.
@@ -161,6 +181,18 @@ pub fn rotate_heading(v: [f64; 2], offset: f64) -> [f64; 2] {
     [v[0] * c + v[1] * s, -v[0] * s + v[1] * c]
 }
 
+/// A covariance `(xx, xy, yy)` turned with its vector by [`rotate_heading`]`(_, offset)`:
+/// `R C R^T`.
+pub fn rotate_covariance(c: [f64; 3], offset: f64) -> [f64; 3] {
+    let (s, co) = offset.sin_cos();
+    // R = [[c, s], [-s, c]]
+    let [a, b, d] = c;
+    let xx = co * co * a + 2.0 * co * s * b + s * s * d;
+    let yy = s * s * a - 2.0 * co * s * b + co * co * d;
+    let xy = -co * s * a + (co * co - s * s) * b + co * s * d;
+    [xx, xy, yy]
+}
+
 /// Squared Mahalanobis distance of `r` under the covariance `(xx, xy, yy)`; `None` when the
 /// covariance is not positive definite.
 pub fn mahalanobis2(r: [f64; 2], cov: [f64; 3]) -> Option<f64> {
@@ -204,5 +236,22 @@ mod tests {
         let m = mahalanobis2([2.0, 0.0], [4.0, 0.0, 1.0]).unwrap();
         assert!((m - 1.0).abs() < 1e-12);
         assert!(mahalanobis2([1.0, 0.0], [1.0, 1.0, 1.0]).is_none());
+    }
+
+    proptest::proptest! {
+        /// A residual and its covariance turned together keep their Mahalanobis distance.
+        #[test]
+        fn turning_keeps_the_mahalanobis_distance(
+            r in proptest::array::uniform2(-5.0f64..5.0),
+            var in proptest::array::uniform2(0.01f64..4.0),
+            psi in -7.0f64..7.0,
+            offset in -7.0f64..7.0,
+        ) {
+            let (_, cov) = features::local_to_world(psi, [0.0, 0.0], var);
+            let before = mahalanobis2(r, cov).unwrap();
+            let after =
+                mahalanobis2(rotate_heading(r, offset), rotate_covariance(cov, offset)).unwrap();
+            proptest::prop_assert!((before - after).abs() <= 1e-9 * before.max(1.0));
+        }
     }
 }

@@ -183,6 +183,15 @@ impl Http {
         (status, body)
     }
 
+    /// Opens an event stream (`GET path` with `token`); the response with its body unread.
+    pub async fn stream(&self, path: &str, token: &str) -> hyper::Response<hyper::body::Incoming> {
+        let req = Request::get(format!("{}{path}", self.base))
+            .header("authorization", format!("Bearer {token}"))
+            .body(Full::default())
+            .unwrap();
+        self.client.request(req).await.expect("a response")
+    }
+
     /// A request with a JSON body (or none); the answer as JSON (`Null` when it is not JSON).
     pub async fn json(
         &self,
@@ -234,4 +243,36 @@ impl Http {
         assert_eq!(s, StatusCode::OK, "{v}");
         v["estimates"].clone()
     }
+}
+
+/// Reads an event stream's body until `done(text so far)` holds, a read waits 30 s, or the
+/// stream ends; the text read.
+pub async fn read_stream_until(
+    resp: hyper::Response<hyper::body::Incoming>,
+    done: impl Fn(&str) -> bool,
+) -> String {
+    let mut body = resp.into_body();
+    let mut text = String::new();
+    while !done(&text) {
+        match tokio::time::timeout(std::time::Duration::from_secs(30), body.frame()).await {
+            Ok(Some(Ok(f))) => {
+                if let Some(d) = f.data_ref() {
+                    text.push_str(&String::from_utf8_lossy(d));
+                }
+            }
+            _ => break,
+        }
+    }
+    text
+}
+
+/// The whole body of a stream that ends (after the server stopped), as text.
+pub async fn read_stream_to_end(resp: hyper::Response<hyper::body::Incoming>) -> String {
+    let bytes = resp
+        .into_body()
+        .collect()
+        .await
+        .map(|b| b.to_bytes())
+        .unwrap_or_default();
+    String::from_utf8_lossy(&bytes).into_owned()
 }
