@@ -122,6 +122,9 @@ pub struct PyFloor {
     pub inner: Arc<CoreFloor>,
     /// Walk files that could not be read (file, error).
     pub skipped: Vec<(String, String)>,
+    /// What the readers skipped, by kind (empty for a floor built from arrays): the
+    /// evaluation reports them as `wipdr eval` does (`skips`).
+    pub skip_counts: wipdr_eval::report::InputSkips,
 }
 
 /// Margin of a plan made from the waypoints' extent, metres (as IPIN folders).
@@ -171,6 +174,7 @@ impl PyFloor {
         Ok(Self {
             inner: Arc::new(CoreFloor::new(name, plan, walks)),
             skipped: Vec::new(),
+            skip_counts: Default::default(),
         })
     }
 
@@ -231,6 +235,13 @@ impl PyFloor {
         self.skipped.clone()
     }
 
+    /// What the readers skipped when the folder was read, ``{kind: count}`` (the ``skips``
+    /// of ``wipdr eval --json`` for this floor; empty for a floor built from arrays).
+    #[getter]
+    fn skips(&self) -> std::collections::BTreeMap<String, usize> {
+        self.skip_counts.clone()
+    }
+
     fn __len__(&self) -> usize {
         self.inner.walks.len()
     }
@@ -253,7 +264,7 @@ impl PyFloor {
             label: self.inner.name.clone(),
             data: self.inner.clone(),
             dir: None,
-            input_skips: Default::default(),
+            input_skips: self.skip_counts.clone(),
         }
     }
 }
@@ -279,6 +290,7 @@ pub fn read_floor_dir(
     let settings = cache_settings(cache_dir);
     let (data, _) =
         wipdr_io::any::read_any_dir(dir, &settings, &wipdr_io::ReadOptions::default(), &|| {})?;
+    let skip_counts = data.skip_counts();
     let skipped = data
         .skipped_walks
         .iter()
@@ -289,6 +301,7 @@ pub fn read_floor_dir(
     Ok(PyFloor {
         inner: Arc::new(floor),
         skipped,
+        skip_counts,
     })
 }
 

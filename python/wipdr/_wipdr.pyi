@@ -104,6 +104,10 @@ class Floor:
     def folds(self) -> List[int]: ...
     @property
     def skipped_walks(self) -> List[Tuple[str, str]]: ...
+    @property
+    def skips(self) -> Dict[str, int]:
+        """What the readers skipped when the folder was read, {kind: count} (the `skips` of
+        `wipdr eval --json` for this floor; empty for a floor built from arrays)."""
     def __len__(self) -> int: ...
 
 class SiteModel:
