@@ -23,7 +23,7 @@ command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 2; }
 mkdir -p "$out"
 cargo build --release --locked --bin wipdr
 bin=target/release/wipdr
-[ -f "$out/model.wipdr" ] || "$bin" fit --data "$floor" --leave-out-fold-of "$walk_id" --out "$out/model.wipdr"
+[ -f "$out/model.wipdr" ] || "$bin" fit --data "$floor" --leave-out-fold-of "$walk_id" --no-leave-one-out --out "$out/model.wipdr"
 # Samples as the Positioner takes them: every sensor row, and each Wi-Fi scan once (the
 # plain stream has a row per AP heard).
 "$bin" export-stream "$walk" --out "$out/stream.csv" 2>/dev/null

@@ -20,7 +20,7 @@ server=""
 cleanup() { [ -n "$server" ] && kill "$server" 2>/dev/null; rm -rf "$work"; }
 trap cleanup EXIT
 model="${MODEL:-$work/site1-F1.wipdr}"
-[ -f "$model" ] || "$bin" fit --data "$data" --out "$model"
+[ -f "$model" ] || "$bin" fit --data "$data" --no-leave-one-out --out "$model"
 od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/tokens"
 echo >> "$work/tokens"
 walks=("$data"/path_data_files/*.txt.gz)
