@@ -707,19 +707,8 @@ pub fn truth_at(walk: &PreparedWalk, t: TimestampMs) -> Option<Point2> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wipdr_core::MotionState;
 
-    fn event(t: TimestampMs, length: f64, heading: f64) -> StepEvent {
-        StepEvent {
-            t,
-            length,
-            heading,
-            heading_change: 0.0,
-            period_s: 0.5,
-            motion: MotionState::default(),
-            covariance: None,
-        }
-    }
+    use wipdr_fusion::synthetic::step as event;
 
     fn waypoint(t: TimestampMs, x: f64, y: f64) -> Waypoint {
         Waypoint {

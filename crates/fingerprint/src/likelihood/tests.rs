@@ -75,6 +75,34 @@ fn the_most_likely_cell_is_where_the_scan_was_taken() {
 }
 
 #[test]
+fn the_value_at_a_point_is_its_cells_value_in_the_raster() {
+    let aps = corners();
+    let config = LikelihoodConfig {
+        max_scan_aps: 3,
+        ..Default::default()
+    };
+    let model = ScanLikelihood::fit(&floor_map(&aps, 40.0, 20.0), &config).unwrap();
+    // Four APs with a cap of three: the weakest is heard but not scored.
+    let scan = scan_at(&aps, Point2::new(13.0, 7.0), 0.0);
+    let raster = model.raster(Some(0), &scan, 2.0).unwrap();
+    for p in [
+        Point2::new(13.0, 7.0),
+        Point2::new(0.5, 19.5),
+        Point2::new(-8.0, -8.0),
+        Point2::new(39.0, 1.0),
+    ] {
+        let i = raster.grid.index_of(p).unwrap();
+        assert_eq!(
+            model.at(Some(0), p, &scan, 2.0),
+            raster.log_likelihood[i],
+            "{p:?}"
+        );
+    }
+    assert_eq!(model.at(Some(0), Point2::new(1e6, 0.0), &scan, 0.0), None);
+    assert_eq!(model.at(Some(1), Point2::new(13.0, 7.0), &scan, 0.0), None);
+}
+
+#[test]
 fn an_unknown_ap_changes_nothing_and_one_wrong_reading_does_not_move_the_best_far() {
     let aps = corners();
     let model =
