@@ -35,6 +35,12 @@ pub struct WifiObservation {
     pub floor: Option<i32>,
     /// Building, as the majority of the candidates, where the map has buildings.
     pub building: Option<i32>,
+    /// The scan's likelihood over the floor, for the filters that weigh positions by it
+    /// (`pmf` with `wifi_likelihood`); `None` when the front end was not asked for it or the
+    /// site model has none for this floor. Not serialised (derived from the scan and the site
+    /// model).
+    #[serde(skip)]
+    pub likelihood: Option<std::sync::Arc<crate::WifiLikelihood>>,
 }
 
 impl WifiObservation {
@@ -46,7 +52,7 @@ impl WifiObservation {
     /// use wipdr_core::{Candidate, Point2, WifiObservation};
     /// let c = |x: f64, floor| Candidate { position: Point2::new(x, 0.0), distance: 1.0, weight: 0.5, index: 0, floor };
     /// let fix = WifiObservation { t: 0, estimate: Point2::new(5.0, 0.0), candidates: vec![c(0.0, Some(0)), c(10.0, Some(-2))],
-    ///                             visited: 2, floor: Some(0), building: None };
+    ///                             visited: 2, floor: Some(0), building: None, likelihood: None };
     /// let on = fix.on_floor(-2).unwrap();
     /// assert_eq!((on.estimate.x, on.candidates.len(), on.floor), (10.0, 1, Some(-2)));
     /// assert!(fix.on_floor(1).is_none());
@@ -88,6 +94,7 @@ impl WifiObservation {
             visited: self.visited,
             floor: Some(floor),
             building: self.building,
+            likelihood: self.likelihood.clone(),
         })
     }
 

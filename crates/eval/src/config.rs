@@ -103,6 +103,9 @@ struct EvalConfigFile {
     /// The motion source between fixes ([`wipdr_positioning::config::Odometry`],
     /// `odometry = "steps" | "learned"`); `pdr` and every fused scheme run it.
     odometry: wipdr_positioning::config::Odometry,
+    /// The scan likelihood over the floor
+    /// ([`wipdr_fingerprint::likelihood::LikelihoodConfig`], `[likelihood]`).
+    likelihood: wipdr_fingerprint::likelihood::LikelihoodConfig,
 }
 
 impl Default for EvalConfigFile {
@@ -131,6 +134,7 @@ impl From<EvalConfigFile> for EvalConfig {
             floor,
             offline,
             odometry,
+            likelihood,
         } = f;
         Self {
             positioner: PositionerConfig {
@@ -143,6 +147,7 @@ impl From<EvalConfigFile> for EvalConfig {
                 floor,
                 seed,
                 odometry,
+                likelihood,
             },
             fit: SiteFitConfig {
                 radio_map,
@@ -173,6 +178,7 @@ impl From<EvalConfig> for EvalConfigFile {
                     floor,
                     seed,
                     odometry,
+                    likelihood,
                 },
             fit:
                 SiteFitConfig {
@@ -205,6 +211,7 @@ impl From<EvalConfig> for EvalConfigFile {
             floor,
             offline,
             odometry,
+            likelihood,
         }
     }
 }

@@ -139,7 +139,9 @@ impl FoldModel {
         .map_err(|source| EvalError::Positioning {
             floor: floor.label.clone(),
             source,
-        })?;
+        })?
+        // Every fix carries its scan's likelihood: the schemes that do not read it ignore it.
+        .with_likelihood(self.model.site().likelihood.clone());
         let data = self.model.data();
         if !data.floors.is_empty() {
             frontend.set_building_floors(&data.floors, &data.floor_heights_m);

@@ -55,7 +55,7 @@
 use std::collections::HashMap;
 
 use serde::{Deserialize, Serialize};
-use wipdr_core::{GridSpec, Point2, WifiScan};
+use wipdr_core::{GridSpec, Point2, WifiLikelihood, WifiScan};
 
 use crate::error::FingerprintError;
 use crate::radio_map::RadioMap;
@@ -100,6 +100,11 @@ pub struct LikelihoodConfig {
     /// the truth at about 95 % (`cargo test -p wipdr-eval --test likelihood_real --
     /// --nocapture` prints it per floor and for other values; 1 holds it at about 30 %).
     pub evidence_scale: f64,
+    /// A place the radio map does not reach takes the mean likelihood of the known cells
+    /// within this distance (a square's half-width), metres ([`WifiLikelihood::from_log`]):
+    /// a scan taken in a coverage gap resembles those of the covered places around it.
+    /// 0: every unknown place reads the scan's mean over the floor.
+    pub unknown_reach_m: f64,
     /// A floor's raster may hold at most this many cells.
     pub max_cells: usize,
     /// All floors' AP fields together may hold at most this many (cell, AP) entries (16
@@ -120,6 +125,7 @@ impl Default for LikelihoodConfig {
             max_scan_aps: 20,
             max_entry_age_ms: Some(5_000),
             evidence_scale: 0.1,
+            unknown_reach_m: 15.0,
             max_cells: 4_000_000,
             max_field_cells: 50_000_000,
         }
@@ -164,6 +170,9 @@ impl LikelihoodConfig {
             && self.evidence_scale <= 1.0)
         {
             return bad("evidence_scale", "in (0, 1]");
+        }
+        if !(self.unknown_reach_m.is_finite() && self.unknown_reach_m >= 0.0) {
+            return bad("unknown_reach_m", "a finite number >= 0");
         }
         if self.max_scan_aps == 0 {
             return bad("max_scan_aps", "at least 1");
@@ -377,6 +386,24 @@ impl ScanLikelihood {
             grid: f.grid,
             log_likelihood,
         })
+    }
+
+    /// The scan's likelihood over `floor` relative to its best cell, in the form the
+    /// filters read ([`WifiLikelihood`]): [`ScanLikelihood::raster`] exponentiated. `floor`
+    /// `None` on a model of one floor means that floor. `None` for a floor without fields or
+    /// a scan no cell of the floor scores.
+    pub fn relative(
+        &self,
+        floor: Option<i32>,
+        scan: &WifiScan,
+        offset_db: f64,
+    ) -> Option<WifiLikelihood> {
+        let floor = match (floor, self.floors.as_slice()) {
+            (None, [only]) => only.floor,
+            _ => floor,
+        };
+        let raster = self.raster(floor, scan, offset_db)?;
+        WifiLikelihood::from_log(raster.grid, &raster.log_likelihood, self.config.unknown_reach_m)
     }
 
     /// The log-likelihood of `scan` at `p` on `floor`: its cell's value in

@@ -127,6 +127,7 @@ pub fn observation_from_neighbours(
         visited,
         floor,
         building,
+        likelihood: None,
     })
 }
 

@@ -52,6 +52,7 @@
 //!     t, estimate: Point2::new(x, y),
 //!     candidates: vec![Candidate { position: Point2::new(x, y), distance: 1.0, weight: 1.0, index: 0, floor: None }],
 //!     visited: 1, floor: None, building: None,
+//!     likelihood: None,
 //! };
 //! fuser.on_wifi(&fix(0, 0.0, 0.0));                 // initialises at the first fix
 //! for k in 1..=4 {                                  // four steps due north (heading 0)
@@ -309,6 +310,13 @@ impl SchemeConfig {
             "pmf" => Self::Pmf(pick(paper, PointMassConfig::paper)),
             other => return Err(FusionError::UnknownScheme(other.to_string())),
         })
+    }
+
+    /// Whether the scheme weighs positions by a scan's likelihood over the floor
+    /// ([`wipdr_core::WifiObservation::likelihood`]), so that the front end should compute
+    /// it: `pmf` with `wifi_likelihood`.
+    pub fn uses_wifi_likelihood(&self) -> bool {
+        matches!(self, Self::Pmf(c) if c.wifi_likelihood)
     }
 
     /// The scheme's name.

@@ -14,7 +14,7 @@
 //! use wipdr_fusion::{Fuser, RobustOffset, RobustOffsetConfig};
 //! let mut f = RobustOffset::new(RobustOffsetConfig::default());
 //! let fix = |t, x: f64| WifiObservation { t, estimate: Point2::new(x, 0.0), candidates: vec![],
-//!     visited: 0, floor: None, building: None };
+//!     visited: 0, floor: None, building: None, likelihood: None };
 //! f.on_wifi(&fix(0, 10.0));
 //! f.on_wifi(&fix(1, 10.0));
 //! f.on_wifi(&fix(2, 90.0)); // a gross error is outvoted
@@ -243,6 +243,7 @@ mod tests {
             visited: 0,
             floor: None,
             building: None,
+            likelihood: None,
         };
         let mut f = RobustOffset::new(RobustOffsetConfig::default());
         f.on_wifi(&fix(0, 10.0));

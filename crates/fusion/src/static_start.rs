@@ -15,7 +15,7 @@
 //! let inner = SchemeConfig::default_for("pdr").unwrap().build(&BuildContext::default()).unwrap();
 //! let mut f = StaticStart::new(inner, StaticStartConfig::default());
 //! let fix = |t, x: f64| WifiObservation { t, estimate: Point2::new(x, 0.0), candidates: vec![],
-//!     visited: 0, floor: None, building: None };
+//!     visited: 0, floor: None, building: None, likelihood: None };
 //! for (t, x) in [(0, 1.0), (1000, -1.0), (2000, 60.0), (3000, 0.5)] {
 //!     f.on_wifi(&fix(t, x)); // standing still; the 60 m fix is gross
 //! }
@@ -151,6 +151,8 @@ impl Fuser for StaticStart {
                             visited: last.visited,
                             floor: last.floor,
                             building: last.building,
+                            // The latest scan's likelihood (the average is a point only).
+                            likelihood: last.likelihood.clone(),
                         };
                         self.inner.on_wifi(&start);
                     }
@@ -204,6 +206,7 @@ mod tests {
             visited: 0,
             floor: None,
             building: None,
+            likelihood: None,
         }
     }
 

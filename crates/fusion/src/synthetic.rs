@@ -301,6 +301,7 @@ impl SyntheticWalk {
                 visited: 100,
                 floor: None,
                 building: None,
+                likelihood: None,
             });
             truth_wifi.push(p);
             gross.push(is_gross);
@@ -402,6 +403,7 @@ pub fn obs_at(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
         visited: 1,
         floor: None,
         building: None,
+        likelihood: None,
     }
 }
 

@@ -31,6 +31,7 @@ fn fix(t: i64, x: f64, y: f64) -> WifiObservation {
         visited: 0,
         floor: None,
         building: None,
+        likelihood: None,
     }
 }
 

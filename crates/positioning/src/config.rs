@@ -2,6 +2,7 @@
 
 use crate::PositioningError;
 use serde::{Deserialize, Serialize};
+use wipdr_fingerprint::likelihood::LikelihoodConfig;
 use wipdr_fingerprint::{MatcherConfig, QueryFilter};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::static_start::StaticStartConfig;
@@ -47,6 +48,10 @@ pub struct PositionerConfig {
     /// `"learned"`); default `steps`, the better of the two under leave-one-floor-out
     /// (`docs/results/odometry.md`).
     pub odometry: Odometry,
+    /// The scan likelihood over the floor ([`LikelihoodConfig`], `[likelihood]`): fit from
+    /// the radio map when the site model is loaded, evaluated for each scan when the scheme
+    /// weighs positions by it (`pmf` with `wifi_likelihood`).
+    pub likelihood: LikelihoodConfig,
 }
 
 /// What moves the walker between Wi-Fi fixes: the motion events the front end hands to the
@@ -144,6 +149,7 @@ impl PositionerConfig {
             floor: crate::FloorConfig::default(),
             seed: 1,
             odometry: Odometry::Steps,
+            likelihood: LikelihoodConfig::default(),
         }
     }
 }
@@ -187,6 +193,12 @@ impl PositionerConfig {
             .validate()
             .map_err(|e| PositioningError::InvalidConfig {
                 path: format!("scheme ({})", self.scheme.name()),
+                reason: e.to_string(),
+            })?;
+        self.likelihood
+            .check()
+            .map_err(|e| PositioningError::InvalidConfig {
+                path: "likelihood".into(),
                 reason: e.to_string(),
             })?;
         self.floor

@@ -12,6 +12,8 @@ use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
 };
+use std::sync::Arc;
+use wipdr_fingerprint::likelihood::ScanLikelihood;
 use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
 use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
@@ -66,6 +68,9 @@ pub struct Frontend {
     counts: StreamCounts,
     /// The learned odometry (`odometry = "learned"`); `None`: steps move the fuser.
     learned: Option<Box<LearnedMotion>>,
+    /// The scan likelihood each fix carries ([`Frontend::with_likelihood`]); `None`: fixes
+    /// are points only.
+    likelihood: Option<Arc<ScanLikelihood>>,
 }
 
 /// The learned motion source of a stream: the streaming network and what turns its outputs
@@ -164,7 +169,17 @@ impl Frontend {
             fixes_across_floors: floor.fixes_across_floors.unwrap_or(false),
             counts: StreamCounts::default(),
             learned: None,
+            likelihood: None,
         }
+    }
+
+    /// The front end with each fix carrying its scan's likelihood over the fix's floor
+    /// ([`WifiObservation::likelihood`], from `likelihood`'s fields; `None`: points only).
+    /// What `pmf` with `wifi_likelihood` weighs cells by; its cost, a pass over the floor's
+    /// raster and the scan's APs' fields, is paid only when a scheme asks for it.
+    pub fn with_likelihood(mut self, likelihood: Option<Arc<ScanLikelihood>>) -> Self {
+        self.likelihood = likelihood;
+        self
     }
 
     /// The front end with motion source `odometry`: with [`Odometry::Learned`], the shipped
@@ -340,6 +355,19 @@ impl Frontend {
                 return None;
             }
         };
+        let obs = self.fix_on_floor(scan, obs)?;
+        Some(match &self.likelihood {
+            Some(model) => WifiObservation {
+                likelihood: model.relative(obs.floor, scan, 0.0).map(Arc::new),
+                ..obs
+            },
+            None => obs,
+        })
+    }
+
+    /// The fix on the stream's floor: its floor set to the tracker's, restricted to its
+    /// candidates there (`None`, counted, when it has none) unless fixes may cross floors.
+    fn fix_on_floor(&mut self, scan: &WifiScan, obs: WifiObservation) -> Option<WifiObservation> {
         let Some(floors) = &mut self.floors else {
             return Some(obs);
         };
@@ -554,7 +582,12 @@ impl Positioner {
                 matcher.stream(config.query),
                 config.floor,
             )
-            .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)?,
+            .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)?
+            .with_likelihood(
+                site.likelihood
+                    .clone()
+                    .filter(|_| config.scheme.uses_wifi_likelihood()),
+            ),
             fusion: FusionStage::new(site, config, config.seed, start)?,
             // A known start is a causal prior the backward run cannot use: no smoothing.
             smoothing: start.is_none().then(|| Smoothing {

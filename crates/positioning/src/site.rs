@@ -4,6 +4,7 @@
 use std::sync::Arc;
 use wipdr_core::{FloorPlan, Point2};
 use wipdr_fingerprint::RadioMap;
+use wipdr_fingerprint::likelihood::ScanLikelihood;
 use wipdr_fusion::{BuildContext, TrailRaster, WalkableGrid, WallIndex};
 
 /// Raster cell of [`Site::walkable`], metres (`pmf`'s walkability and map matching).
@@ -20,6 +21,9 @@ pub struct Site {
     pub coverage: Option<Arc<Vec<Point2>>>,
     /// Where training walks went (`pmf`'s optional trail prior).
     pub trails: Option<Arc<TrailRaster>>,
+    /// Each floor's AP signal fields: a scan's likelihood over the floor (`pmf` with
+    /// `wifi_likelihood`); `None` when not fit.
+    pub likelihood: Option<Arc<ScanLikelihood>>,
 }
 
 impl Site {
@@ -52,6 +56,7 @@ impl Site {
             walkable,
             coverage: None,
             trails: None,
+            likelihood: None,
         }
     }
 

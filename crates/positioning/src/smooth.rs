@@ -25,7 +25,7 @@ const BACKWARD_SEED: u64 = 0x6261_636b_7761_7264;
 /// use wipdr_positioning::{PositionerConfig, Site, smooth::smooth_fusion};
 /// let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
 ///     candidates: vec![Candidate { position: Point2::new(x, y), distance: 1.0, weight: 1.0,
-///     index: 0, floor: None }], visited: 1, floor: None, building: None };
+///     index: 0, floor: None }], visited: 1, floor: None, building: None, likelihood: None };
 /// let steps: Vec<StepEvent> = (1..=20).map(|k| StepEvent { t: 500 * k, length: 0.7,
 ///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default(), covariance: None })
 ///     .collect();

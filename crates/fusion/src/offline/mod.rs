@@ -26,7 +26,7 @@ use crate::{BuildContext, Estimate, FusionError, SchemeConfig};
 /// use wipdr_core::{MotionState, Point2, StepEvent, WifiObservation};
 /// use wipdr_fusion::{BuildContext, SchemeConfig, offline::native_smooth};
 /// let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
-///     candidates: vec![], visited: 0, floor: None, building: None };
+///     candidates: vec![], visited: 0, floor: None, building: None, likelihood: None };
 /// let steps: Vec<StepEvent> = (1..=10).map(|k| StepEvent { t: 500 * k, length: 0.7,
 ///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default(), covariance: None })
 ///     .collect();

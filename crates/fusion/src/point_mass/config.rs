@@ -148,6 +148,18 @@ pub struct PointMassConfig {
     pub evidence_slow_rate: f64,
     /// Largest share of the posterior one fix may reset, in `[0, 1]`.
     pub max_reset_share: f64,
+    /// Weigh the cells by the scan's likelihood over the floor
+    /// ([`wipdr_core::WifiLikelihood`], when the fix carries one) instead of the robust
+    /// Gaussian about the fix: a scan that fits two places keeps both until the walk's shape
+    /// and the plan choose. The coverage-gap terms (`gap_*`, `quality_*`) do not apply: a
+    /// place the radio map does not know reads the scan's mean likelihood. A fix without a
+    /// likelihood is weighed by the Gaussian.
+    pub wifi_likelihood: bool,
+    /// With `wifi_likelihood`, the likelihood's share of a cell's Wi-Fi weight, in `[0, 1]`:
+    /// the weight is `(1 - share) g + share l + wifi_outlier` with `g` the Gaussian about
+    /// the fix (coverage aware) and `l` the scan's likelihood relative to its best cell.
+    /// 1: the likelihood alone.
+    pub likelihood_share: f64,
 }
 
 impl Default for PointMassConfig {
@@ -188,6 +200,8 @@ impl Default for PointMassConfig {
             evidence_fast_rate: 0.0,
             evidence_slow_rate: 0.05,
             max_reset_share: 0.3,
+            wifi_likelihood: false,
+            likelihood_share: 0.5,
         }
     }
 }
@@ -320,6 +334,7 @@ impl PointMassConfig {
             ("evidence_fast_rate", self.evidence_fast_rate),
             ("evidence_slow_rate", self.evidence_slow_rate),
             ("max_reset_share", self.max_reset_share),
+            ("likelihood_share", self.likelihood_share),
         ] {
             if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
                 return Err(FusionError::InvalidConfig {

@@ -2,7 +2,7 @@
 //! aware) of `pmf`, behind [`Fuser`].
 
 use nalgebra::Matrix2;
-use wipdr_core::{Point2, StepEvent, Vector2, WifiObservation, angle};
+use wipdr_core::{Point2, StepEvent, Vector2, WifiLikelihood, WifiObservation, angle};
 
 use super::{NO_CELL, PointMassFilter};
 use crate::walkable::CellClass;
@@ -258,13 +258,27 @@ impl PointMassFilter {
             1.0
         };
         self.walked_since_fix = 0.0;
+        let likelihood = obs.likelihood.clone().filter(|_| self.cfg.wifi_likelihood);
+        let share = if likelihood.is_some() {
+            self.cfg.likelihood_share
+        } else {
+            0.0
+        };
+        if share >= 1.0
+            && let Some(likelihood) = &likelihood
+        {
+            return self.weigh_likelihood(likelihood, power);
+        }
         let inv = power / (2.0 * self.cfg.wifi_sd_m * self.cfg.wifi_sd_m);
         let (outlier, gap_like) = (self.cfg.wifi_outlier, self.cfg.gap_likelihood);
         let gap_inv = 1.0 / (2.0 * self.cfg.gap_sd_m * self.cfg.gap_sd_m);
         // `is_gap(pos)` split into its row and column lookups, as in `on_step`.
         let gap = self.gap.take();
+        // The likelihood's share of the weight (`likelihood_share`), the Gaussian's the rest.
+        let keep = 1.0 - share;
+        let background = outlier + likelihood.as_ref().map_or(0.0, |l| share * l.unknown());
         let total = self.weigh(
-            outlier,
+            background,
             |x| {
                 gap.as_ref()
                     .and_then(|g| g.grid.col_of(x))
@@ -288,9 +302,48 @@ impl PointMassFilter {
                         trust * (-r2 * inv).exp() + outlier
                     };
                 }
+                if let Some(l) = &likelihood {
+                    let (grid, powered) = (l.grid(), power != 1.0);
+                    let row = grid.row_of(y).unwrap_or(NO_CELL);
+                    for (weight, &x) in weights.iter_mut().zip(xs) {
+                        let column = grid.col_of(x).unwrap_or(NO_CELL);
+                        let v = l.at_cell(column, row);
+                        let v = if powered { v.powf(power) } else { v };
+                        *weight = keep * (*weight - outlier) + share * v + outlier;
+                    }
+                }
             },
         );
         self.gap = gap;
         total
+    }
+
+    /// Multiplies the active cells by the scan's likelihood at their positions (relative to
+    /// its best cell, raised to the decorrelation `power`) plus the outlier floor
+    /// `wifi_outlier`; a position the radio map does not know reads the scan's mean
+    /// likelihood over the known places ([`WifiLikelihood::unknown`]), so a coverage gap is
+    /// flat instead of a fake fix. The represented total.
+    fn weigh_likelihood(&mut self, likelihood: &WifiLikelihood, power: f64) -> f64 {
+        let outlier = self.cfg.wifi_outlier;
+        let grid = *likelihood.grid();
+        let weight = |v: f64| {
+            if power == 1.0 {
+                v + outlier
+            } else {
+                v.powf(power) + outlier
+            }
+        };
+        // A background hypothesis is somewhere unknown to the window: the mean likelihood.
+        let background = weight(likelihood.unknown());
+        self.weigh(
+            background,
+            |x| grid.col_of(x).unwrap_or(NO_CELL),
+            |y, _, columns, weights| {
+                let row = grid.row_of(y).unwrap_or(NO_CELL);
+                for (w, &column) in weights.iter_mut().zip(columns) {
+                    *w = weight(likelihood.at_cell(column, row));
+                }
+            },
+        )
     }
 }

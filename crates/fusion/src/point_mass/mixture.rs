@@ -31,7 +31,7 @@ pub const MAX_HEADING_HYPOTHESES: usize = 16;
 ///     ..PointMassConfig::default() };
 /// let mut f = PointMassMixture::from_context(&cfg, &BuildContext::default()).unwrap();
 /// let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
-///     candidates: vec![], visited: 0, floor: None, building: None };
+///     candidates: vec![], visited: 0, floor: None, building: None, likelihood: None };
 /// f.on_wifi(&fix(0, 0.0, 0.0));
 /// for k in 1..=40 {
 ///     // PDR says north; the fixes say the walk heads 10 degrees east of north.

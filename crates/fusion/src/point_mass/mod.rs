@@ -49,7 +49,7 @@
 //! use wipdr_fusion::{Fuser, point_mass::{PointMassConfig, PointMassFilter}};
 //! let mut f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
 //! let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
-//!     candidates: vec![], visited: 0, floor: None, building: None };
+//!     candidates: vec![], visited: 0, floor: None, building: None, likelihood: None };
 //! f.on_wifi(&fix(0, 10.0, 10.0));
 //! for k in 1..=10 {
 //!     f.on_step(&StepEvent { t: 500 * k, length: 0.7, heading: 0.0, heading_change: 0.0,

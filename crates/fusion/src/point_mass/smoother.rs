@@ -74,7 +74,7 @@ impl PointMassFilter {
     /// use wipdr_fusion::point_mass::{PointMassConfig, PointMassFilter};
     /// let f = PointMassFilter::new(PointMassConfig::default(), None, None, None).unwrap();
     /// let fix = |t, x: f64, y: f64| WifiObservation { t, estimate: Point2::new(x, y),
-    ///     candidates: vec![], visited: 0, floor: None, building: None };
+    ///     candidates: vec![], visited: 0, floor: None, building: None, likelihood: None };
     /// let steps: Vec<StepEvent> = (1..=20).map(|k| StepEvent { t: 500 * k, length: 0.7,
     ///     heading: 0.0, heading_change: 0.0, period_s: 0.5, motion: MotionState::default(), covariance: None })
     ///     .collect();

@@ -14,6 +14,7 @@ fn fix(t: TimestampMs, x: f64, y: f64) -> WifiObservation {
         visited: 0,
         floor: None,
         building: None,
+        likelihood: None,
     }
 }
 

@@ -34,8 +34,9 @@ pub const MAGIC: &[u8; 8] = b"WIPDRSM\0";
 /// Bumped whenever the saved types or the layout change; a file of another version is
 /// refused with [`SiteModelFileError::Version`] (fit the site again). Version 3 added the
 /// leave-one-walk-out Wi-Fi errors ([`super::LeaveOneOut`], optional within the version: a
-/// model fit without them saves `None`).
-pub const FORMAT_VERSION: u32 = 3;
+/// model fit without them saves `None`). Version 4 added the positioner config's
+/// `[likelihood]` section (the scan likelihood's settings).
+pub const FORMAT_VERSION: u32 = 4;
 /// Bytes of the fixed header: magic, version, payload length, payload CRC, header CRC.
 pub const HEADER_BYTES: usize = 8 + 4 + 8 + 4 + 4;
 /// Largest model file read: 2 GiB (the five ILC floors as one model take a few tens of MB).

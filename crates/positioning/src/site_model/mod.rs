@@ -76,6 +76,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use thiserror::Error;
 use wipdr_core::{FloorPlan, GeoFrame, Point2, Segment};
+use wipdr_fingerprint::likelihood::ScanLikelihood;
 use wipdr_fingerprint::{MatcherModel, RadioMap};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::TrailRaster;
@@ -219,6 +220,10 @@ impl SiteModel {
                 }
             }
         };
+        site.likelihood = Some(Arc::new(ScanLikelihood::fit(
+            &map,
+            &data.config.likelihood,
+        )?));
         Ok(Self {
             matcher,
             site,
