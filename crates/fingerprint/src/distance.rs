@@ -86,7 +86,7 @@ pub struct SharedAp {
     /// Largest common RSSI offset (dB) removed before the mean difference is taken: the
     /// mean of `a - b` over the shared APs, clamped to `[-max_offset_db, max_offset_db]`, is
     /// subtracted from every difference (a phone's gain differs from the survey phones';
-    /// wipdr's own, measured in `docs/results/accuracy.md` "Session 9"). 0 (default): off.
+    /// wipdr's own, measured in `docs/experiments.md`, common RSSI offset). 0 (default): off.
     #[serde(default)]
     pub max_offset_db: f32,
     /// Detection weighting of the non-shared fraction (wipdr's own; 0, the default: off).
