@@ -39,7 +39,7 @@ pub struct HandlingConfig {
     /// by default, `None`: the gate opens as soon as the rate is back at or below
     /// `max_rotation_rad_s`; the papers' preset has no gate, [`HandlingConfig::off`]). At
     /// most `max_rotation_rad_s`. Measured by `wipdr sweep --config
-    /// docs/sweeps/handling-session19.toml --data ../shared/data/ipin2023`
+    /// docs/sweeps/handling-hysteresis.toml --data ../shared/data/ipin2023`
     /// (`docs/experiments.md`): 1.5 (hold 8 s, before the tumbling test was
     /// the default) took IPIN causal `pmf` 6.78 -> 6.70 m, EvAAL 9.43 -> 9.13 (6.71 / 9.18
     /// on top of the tumbling test), but drops walking steps of an ILC site2/F3

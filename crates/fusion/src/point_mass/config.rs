@@ -9,7 +9,7 @@ use crate::FusionError;
 pub const PMF_BIAS_SHARE: f64 = 0.2;
 
 /// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`,
-/// `docs/sweeps/pmf-session7.toml`; docs/experiments.md), so they are optimistic there;
+/// `docs/sweeps/pmf-outlier-gap-wifi-sd.toml`; docs/experiments.md), so they are optimistic there;
 /// [`PointMassConfig::paper`] keeps the settings before the second of those sweeps.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -24,7 +24,7 @@ pub struct PointMassConfig {
     /// Weight of a hypothesis whose position is inside a unit (a shop), per step (0.65;
     /// [`PointMassConfig::paper`]: 0.8). 0.65 measured ILC causal 5.03 -> 4.98 m against 0.8,
     /// offline 4.02 -> 3.84 m, better offline on every floor
-    /// (`just sweep docs/sweeps/pmf-session18-walls.toml s.csv`, docs/experiments.md);
+    /// (`just sweep docs/sweeps/pmf-unit-likelihood.toml s.csv`, docs/experiments.md);
     /// harder (0.5) lowers the median further but places some walks in the wrong corridor.
     pub unit_likelihood: f64,
     /// Weight of a hypothesis whose position is outside the floor outline, per step.
@@ -55,7 +55,7 @@ pub struct PointMassConfig {
     /// point of least expected error, the metric the evaluation scores) instead of its mean
     /// (true; [`PointMassConfig::paper`]: false, the mean). The median measured ILC causal
     /// 5.05 -> 5.03 m, better or equal on every floor; IPIN causal mean 7.05 unchanged, its
-    /// EvAAL 9.78 -> 9.82 m slightly worse (`just sweep docs/sweeps/pmf-session16-median.toml
+    /// EvAAL 9.78 -> 9.82 m slightly worse (`just sweep docs/sweeps/pmf-estimate-median.toml
     /// s.csv`, docs/experiments.md).
     pub estimate_median: bool,
     /// Standard deviation added (in quadrature, per axis) to the posterior's spread in the
@@ -77,7 +77,7 @@ pub struct PointMassConfig {
     /// share of scored waypoints inside the 95 % radius went 94.3 -> 95.9 % on the five ILC
     /// floors (66.7 -> 83.3 % of those 12 m or more from coverage) and 79.8 -> 86.0 % on
     /// IPIN, the median radius 9.3 -> 9.8 m and 10.9 -> 11.6 m
-    /// (`just sweep docs/sweeps/pmf-session21-gap-radius.toml s.csv`, docs/experiments.md).
+    /// (`just sweep docs/sweeps/pmf-gap-radius.toml s.csv`, docs/experiments.md).
     /// wipdr's own (no paper value).
     pub gap_radius_sd_per_m: f64,
     /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
@@ -99,7 +99,7 @@ pub struct PointMassConfig {
     /// Keep the previous mode while it holds at least this share of the best mode's mass
     /// (1: only while it ties with the best, no stickiness; [`PointMassConfig::paper`]: 0.5).
     /// 1 measured ILC causal 5.10 -> 5.05 m against 0.5, better or equal on every floor
-    /// (`just sweep docs/sweeps/pmf-session14-mode.toml s.csv`, docs/experiments.md).
+    /// (`just sweep docs/sweeps/pmf-mode-hysteresis.toml s.csv`, docs/experiments.md).
     pub mode_hysteresis: f64,
     /// Multiplies every step length (1 = as PDR reports).
     pub step_scale: f64,
@@ -119,13 +119,13 @@ pub struct PointMassConfig {
     /// ([`crate::trails`]) in the per-step weight on every plan; 0 (the default and
     /// `paper()`): off where the plan has walls (a walkable raster), `planless_trail_sd_m`
     /// where it has none. Off when the filter is built without trails. With walls the trails
-    /// cost accuracy on the ILC floors (`just sweep docs/sweeps/pmf-session8-trails.toml s.csv`,
+    /// cost accuracy on the ILC floors (`just sweep docs/sweeps/pmf-trails.toml s.csv`,
     /// docs/experiments.md; docs/results/trails.md).
     pub trail_sd_m: f64,
     /// Width of the training trails used when `trail_sd_m` is 0 and the filter has no
     /// walkable raster (a plan without an outline: the IPIN logfiles, ILC sites read as one
     /// building), where the trails are the only knowledge of where people walk. Default 6 m
-    /// (sweep `docs/sweeps/pmf-session16-planless-trails.toml`: IPIN causal 7.05 -> 6.78 m,
+    /// (sweep `docs/sweeps/pmf-planless-trails.toml`: IPIN causal 7.05 -> 6.78 m,
     /// EvAAL 9.82 -> 9.43; offline 6.08 -> 5.82, EvAAL 6.70 -> 6.38; ILC sites as buildings
     /// 6.07 -> 5.51); `paper()`: 0 (off).
     pub planless_trail_sd_m: f64,
@@ -142,7 +142,7 @@ pub struct PointMassConfig {
     /// fast / slow evidence ratio of augmented MCL, Thrun et al., Probabilistic Robotics 8.3.5).
     /// Off by default: on both buildings it follows biased fixes out of good placements
     /// (0.3 / 0.03 / 0.1: ILC causal 5.10 -> 5.13, IPIN 7.00 -> 8.67; `docs/experiments.md`,
-    /// `docs/sweeps/pmf-session13-reset.toml`). For streams whose placement can be lost.
+    /// `docs/sweeps/pmf-sensor-reset.toml`). For streams whose placement can be lost.
     pub evidence_fast_rate: f64,
     /// Rate of the slow running mean of the fixes' evidence, per fix, in `[0, 1]`.
     pub evidence_slow_rate: f64,
