@@ -76,12 +76,12 @@ impl Default for Plgd {
     }
 }
 
-/// Shared-AP distance (findings.md): mean `|a - b|` over the APs both heard, plus
+/// Shared-AP distance (docs/experiments.md): mean `|a - b|` over the APs both heard, plus
 /// `lambda * (heard by one only) / (heard by either)`. With no shared AP the mean term is
 /// [`SHARED_AP_NONE`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SharedAp {
-    /// Weight of the non-shared fraction (findings.md: 40-80).
+    /// Weight of the non-shared fraction (docs/experiments.md: 40-80).
     pub lambda: f32,
     /// Largest common RSSI offset (dB) removed before the mean difference is taken: the
     /// mean of `a - b` over the shared APs, clamped to `[-max_offset_db, max_offset_db]`, is
