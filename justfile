@@ -16,6 +16,10 @@ lint:
     cargo fmt --all -- --check
     cargo clippy --workspace --all-targets -- -D warnings
 
+# Every relative markdown link and cited docs/, crates/, tools/, benches/ path resolves (under 1 s).
+check-links:
+    python3 .ci/check-links
+
 # Everything CI runs.
 ci:
     bash .ci/run

@@ -4,7 +4,7 @@
 mean error, the route's share of the summed error, the median distance to coverage and the
 share of points 6 m or more from it (`coverage_m`), and each walk's first-point error.
 Tells whether a building's error sits in a few routes and whether those are coverage gaps
-(docs/results/ipin.md, "Current figures"; docs/results/accuracy.md, "Sessions 15-16").
+(docs/results/ipin.md; docs/experiments.md, IPIN by route).
 
 Standard library only:
 

@@ -4,7 +4,7 @@
 # temporary folder, the data read in place), so the radio map of a test walk holds the other
 # repetitions of its own route. A diagnostic of what the map's coverage is worth, not the
 # protocol: the same route's other walks are in the map (docs/results/accuracy.md,
-# "Session 21").
+# "IPIN: the EvAAL bar is met when the map covers the route").
 #
 #   bash docs/results/ipin_walk_folds.sh [DATA_DIR] [-- extra `wipdr eval` arguments]
 #

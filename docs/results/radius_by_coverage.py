@@ -3,7 +3,7 @@
 waypoints whose error is within the reported 95 % radius (2.45 x `sd_m`), per floor (an
 IPIN logfile folder: per route `TrialNN`) and by the waypoint's distance to the fold's
 nearest measured reference point (`coverage_m`). Tells whether an over-confident radius sits
-in coverage gaps (docs/results/accuracy.md, "Session 20").
+in coverage gaps (docs/experiments.md, the radius by coverage).
 
 Standard library only:
 

@@ -5,7 +5,7 @@ whole walk lies outside the fold's radio-map coverage and every fix lands in som
 place far from the walker, so no filter over the fixes can place the walk (only a floor plan
 can, where it tells the places apart). Prints those walks with the scheme's and the fixes'
 mean error, then the scheme's pooled mean with and without them
-(docs/results/accuracy.md, "Session 21").
+(docs/results/accuracy.md, "The walks the Wi-Fi does not inform").
 
 Standard library only:
 

@@ -1,5 +1,5 @@
 //! How many detected steps each handling gate rejects, before and after a walk's first
-//! ground-truth point (docs/results/accuracy.md "Session 19"): runs the PDR with the gate
+//! ground-truth point (docs/experiments.md, handling gate): runs the PDR with the gate
 //! off over every walk given, feeds each variant's `HandlingGate` the same gyroscope stream,
 //! and asks each at every step whether it would reject it. Also the dominant-axis share of
 //! the rotation at the steps above 1.5 rad/s (10th / 50th / 90th percentile).

@@ -1,7 +1,7 @@
 //! Issue 16's causal acceptance on the five ILC floors, held as a regression test of the
 //! shipped defaults (no config file): `pmf` pooled mean <= 5.0 m and p95 <= 14 m, its 95 %
 //! radius holding the truth at 90-97 % of the scored waypoints, and `pmf` better than `wifi`.
-//! Measured in session 21 (docs/results/accuracy.md "Session 21"): 4.98 / 13.61 m, 95.9 %,
+//! Measured (docs/results/accuracy.md): 4.98 / 13.61 m, 95.9 %,
 //! `wifi` 7.77 m; `wipdr eval --data $F --schemes wifi,pmf` gives the same figures. Skips
 //! with a reason when `../shared/data` is absent.
 

@@ -5,7 +5,8 @@
 //! barometer and its references, default config) to issue 15's >= 97 % floor hits; `pmf`'s
 //! 95 % radius, which grows with the estimate's distance from coverage (43 % of these
 //! points lie 3 m or more from the other routes' fingerprints), to at least 84 % of the
-//! points (86.0 % measured in session 21; 79.8 % without the gap term).
+//! points (86.0 % measured by `wipdr eval --data ../shared/data/ipin2023 --schemes pmf`,
+//! docs/results/accuracy.md; 79.8 % without the gap term).
 
 use std::path::PathBuf;
 use wipdr_eval::pipeline::{EvalConfig, FloorInput, evaluate};

@@ -76,17 +76,17 @@ impl Default for Plgd {
     }
 }
 
-/// Shared-AP distance (findings.md): mean `|a - b|` over the APs both heard, plus
+/// Shared-AP distance (docs/experiments.md): mean `|a - b|` over the APs both heard, plus
 /// `lambda * (heard by one only) / (heard by either)`. With no shared AP the mean term is
 /// [`SHARED_AP_NONE`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SharedAp {
-    /// Weight of the non-shared fraction (findings.md: 40-80).
+    /// Weight of the non-shared fraction (docs/experiments.md: 40-80).
     pub lambda: f32,
     /// Largest common RSSI offset (dB) removed before the mean difference is taken: the
     /// mean of `a - b` over the shared APs, clamped to `[-max_offset_db, max_offset_db]`, is
     /// subtracted from every difference (a phone's gain differs from the survey phones';
-    /// wipdr's own, measured in `docs/results/accuracy.md` "Session 9"). 0 (default): off.
+    /// wipdr's own, measured in `docs/experiments.md`, common RSSI offset). 0 (default): off.
     #[serde(default)]
     pub max_offset_db: f32,
     /// Detection weighting of the non-shared fraction (wipdr's own; 0, the default: off).

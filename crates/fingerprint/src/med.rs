@@ -1,7 +1,7 @@
 //! Multi-scan Euclidean distance matcher `med` (paper 004 eq. 11, Table 3).
 //!
-//! The printed eq. 11 sums signed differences without square or root; algorithms.md fixes it
-//! to the Euclidean form the name says:
+//! The printed eq. 11 sums signed differences without square or root; `docs/algorithms.md`
+//! fixes it to the Euclidean form the name says:
 //! `d(c) = sqrt( sum_{i=k-w+1..k} sum_j (RSS(i,j) - RSS_db(i,j))^2 )` over the last `w` scans
 //! (default 2, paper 004 Table 3).
 //!
@@ -16,7 +16,7 @@
 //! [`MedConfig::metric`] = [`MedMetric::SharedAp`] each scan is compared with the same
 //! database point as above, but by the shared-AP distance of [`crate::distance::SharedAp`]
 //! (mean `|dRSSI|` over the APs both heard plus `lambda * non-shared / union`, the default
-//! single-scan distance on recorded walks, findings.md), evaluated by the sparse engine of
+//! single-scan distance on recorded walks, docs/experiments.md), evaluated by the sparse engine of
 //! [`KnnMatcher`] exactly as single-scan shared-AP WKNN evaluates it. The per-scan distances
 //! `d_i` combine as their root mean square over the scans in the window,
 //! `d(c) = sqrt( sum_i d_i^2 / n )` (`n` = scans held, at most `w`): the root of a sum of

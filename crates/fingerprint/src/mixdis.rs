@@ -8,8 +8,8 @@
 //! - **GeoDis** (eq. 2): Euclidean distance of the positions.
 //! - **MixDis** (eq. 3): `Nor(SigDis) * Nor(GeoDis)` with `Nor` the min-max normalisation over
 //!   all pairs `i != j` (pairs with infinite SigDis excluded from SigDis's min and max).
-//! - Similarity = **-MixDis** (algorithms.md erratum: the paper feeds MixDis in as `s(i, j)`,
-//!   but a similarity must grow with likeness). Pairs with `m_ij = 0` get
+//! - Similarity = **-MixDis** (`docs/algorithms.md` erratum: the paper feeds MixDis in as
+//!   `s(i, j)`, but a similarity must grow with likeness). Pairs with `m_ij = 0` get
 //!   `-`[`MixDisConfig::disjoint_mixdis`] (default 10, ten times the largest possible finite
 //!   MixDis), finite so that affinity propagation can run, and never chosen over a real pair.
 //! - **Signal similarity** for comparison: `-sum_k (v_ik - v_jk)^2` (negative squared

@@ -247,7 +247,7 @@ impl MatcherConfig {
     }
 
     /// The kind's defaults for recorded walks: the paper settings with the shared-AP
-    /// distance (findings.md; MED keeps its Euclidean form, whose shared-AP variant is
+    /// distance (docs/experiments.md; MED keeps its Euclidean form, whose shared-AP variant is
     /// wipdr's extension and opt-in).
     pub fn defaults_for(kind: &str) -> Result<Self, FingerprintError> {
         let shared = Metric::SharedAp(SharedAp::default());

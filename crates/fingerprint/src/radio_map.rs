@@ -21,7 +21,7 @@ pub fn is_valid_rssi(v: f64) -> bool {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RadioMapConfig {
-    /// The RSS written for an AP a reference point did not hear, dBm (algorithms.md: -110).
+    /// The RSS written for an AP a reference point did not hear, dBm (`docs/algorithms.md`: -110).
     pub not_heard_dbm: f32,
 }
 

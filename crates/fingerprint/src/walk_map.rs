@@ -4,9 +4,10 @@
 //! grid cells.
 //!
 //! The real scans are stale (median entry age 3-4 s, 60 % over 2 s): how old an entry may be
-//! relative to its scan is [`WalkMapConfig::max_entry_age_ms`] (findings.md: 5-10 s beats
-//! 2 s; default 5 s). Labels are taken at the scan time by default (findings.md: labelling at
-//! the entries' last-seen time is worse). Everything dropped is counted in [`WalkMapReport`].
+//! relative to its scan is [`WalkMapConfig::max_entry_age_ms`] (docs/experiments.md: 5-10 s
+//! beats 2 s; default 5 s). Labels are taken at the scan time by default (docs/experiments.md:
+//! labelling at the entries' last-seen time is worse). Everything dropped is counted in
+//! [`WalkMapReport`].
 //!
 //! [`WalkMapConfig::interpolation`] (off by default) densifies the map (paper 004 §5.3, see
 //! [`crate::interpolate`]): fingerprints between consecutive scans of each training walk, at
@@ -32,7 +33,7 @@ use wipdr_core::{Bssid, Point2, TimestampMs, Walk};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum LabelTime {
-    /// At the scan time (default; findings.md).
+    /// At the scan time (default; docs/experiments.md).
     #[default]
     ScanTime,
     /// At the mean last-seen time of the entries kept.

@@ -207,7 +207,7 @@ pub struct EkfConfig {
     /// `R_w` (001 eq. 16: 10² m²).
     pub r_wifi_m2: f64,
     /// Use `R = max(spread, r_spread_floor_m)^2` from the candidates' spatial spread instead
-    /// of `r_wifi_m2` (findings.md; not in the papers).
+    /// of `r_wifi_m2` (docs/experiments.md; not in the papers).
     pub r_from_spread: bool,
     /// Floor of the spread-based R, metres.
     pub r_spread_floor_m: f64,

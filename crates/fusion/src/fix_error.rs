@@ -23,7 +23,8 @@
 //!
 //! `bias_share` is calibrated on the five ILC floors so that the 95 % radius (2.45 sd) holds
 //! the truth at about 95 % of the scored waypoints, and checked on the IPIN building (another
-//! building, other phones): `docs/results/accuracy.md`, "Session 9".
+//! building, other phones): `docs/experiments.md` (bias share); measured by `wipdr eval
+//! --schemes pf,apf,aws,tcpf,rof --config B.toml` with `radius = { bias_share = B }` per scheme.
 //!
 //! ```
 //! use wipdr_core::Vector2;

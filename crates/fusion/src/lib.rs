@@ -40,7 +40,7 @@
 //! synthetic-walk generator for tests, examples and benches in [`synthetic`].
 //!
 //! Where a formula as printed contradicts its own paper's text, the rustdoc of the scheme says
-//! what is implemented (see `docs/algorithms.md` of the project).
+//! what is implemented (see `docs/algorithms.md`).
 //!
 //! ```
 //! use wipdr_core::{Candidate, MotionState, Point2, StepEvent, WifiObservation};

@@ -111,7 +111,7 @@ pub struct PfConfig {
 }
 
 /// The shipped default differs from the untuned preset in `position_sd_m` and `wifi_sd_m`
-/// (a grid on the five ILC floors and the IPIN walks, `docs/results/accuracy.md` "Session 9":
+/// (a grid on the five ILC floors and the IPIN walks, `docs/experiments.md`, `wipdr sweep`:
 /// ILC 6.01 -> 5.77 m, IPIN 12.76 -> 8.34 m mean).
 impl Default for PfConfig {
     fn default() -> Self {
@@ -125,7 +125,7 @@ impl Default for PfConfig {
 
 impl PfConfig {
     /// Paper 004 §4.3 gives no numeric values for its particle filters: its preset is ours,
-    /// untuned on recorded walks (the defaults of sessions 1-8).
+    /// untuned on recorded walks (the defaults before the grid above).
     pub fn paper() -> Self {
         Self {
             n_particles: 1000,

@@ -13,7 +13,7 @@
 //! direction test is skipped when `Dist_p < rho`: the annular sector then degenerates into a
 //! disc (standing still, or a stride too short for a direction).
 //!
-//! The state machine (figure 8 is missing from the text; this is `algorithms.md`'s reading,
+//! The state machine (figure 8 is missing from the text; this is `docs/algorithms.md`'s reading,
 //! implemented by [`next_state`]): a trusted point goes to [`TrustState::TrustedLocked`];
 //! otherwise a locked state (TrustedLocked or Locked) goes to Locked while
 //! `lambda_{t|t-1} <= epsilon` (1) and to Unlocked when it exceeds it; Unlocked stays

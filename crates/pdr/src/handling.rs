@@ -25,8 +25,9 @@ use wipdr_core::TimestampMs;
 pub struct HandlingConfig {
     /// Largest smoothed rotation rate (norm of the gyroscope vector, rad/s) at which a
     /// detected step is kept; `None` turns the gate off (the papers' preset,
-    /// [`HandlingConfig::off`]). Measured (`docs/results/ipin.md`, `docs/results/accuracy.md`
-    /// "Session 9"): 1.5 removes the IPIN logfiles' 33-66 handling steps per walk down to 0-4
+    /// [`HandlingConfig::off`]). Measured by `wipdr eval --data ../shared/data/ipin2023` and
+    /// on the five ILC floors (`docs/results/ipin.md`, `docs/experiments.md`): 1.5 removes
+    /// the IPIN logfiles' 33-66 handling steps per walk down to 0-4
     /// and keeps their walking steps, but also drops walking steps of some ILC walks (PDR
     /// 3.04 -> 3.21 m pooled at 2.0); the default 3.0 leaves every ILC figure as it was
     /// without the gate and still takes `pmf` 10.61 -> 8.17 m on the IPIN walks (`ekf` 8.05
@@ -37,8 +38,9 @@ pub struct HandlingConfig {
     /// Smoothed rotation rate below which a closed gate opens again, rad/s (hysteresis; off
     /// by default, `None`: the gate opens as soon as the rate is back at or below
     /// `max_rotation_rad_s`; the papers' preset has no gate, [`HandlingConfig::off`]). At
-    /// most `max_rotation_rad_s`. Measured in session 19 (`docs/sweeps/handling-session19.toml`,
-    /// `docs/results/accuracy.md` "Session 19"): 1.5 (hold 8 s, before the tumbling test was
+    /// most `max_rotation_rad_s`. Measured by `wipdr sweep --config
+    /// docs/sweeps/handling-hysteresis.toml --data ../shared/data/ipin2023`
+    /// (`docs/experiments.md`): 1.5 (hold 8 s, before the tumbling test was
     /// the default) took IPIN causal `pmf` 6.78 -> 6.70 m, EvAAL 9.43 -> 9.13 (6.71 / 9.18
     /// on top of the tumbling test), but drops walking steps of an ILC site2/F3
     /// walker who handles the phone and then swings it (calibrated PDR p95 there 9.11 ->
@@ -49,19 +51,21 @@ pub struct HandlingConfig {
     /// Longest time a closed gate stays closed after the rate was last above
     /// `max_rotation_rad_s`, seconds, even while the rate stays above `release_rad_s` (4 s
     /// by default; only used with `release_rad_s`): bounds the steps a walker who swings the
-    /// phone after handling it can lose. Measured in session 19: 4 s did not rescue the ILC
+    /// phone after handling it can lose. Measured with `docs/configs/ipin.toml` and
+    /// `release_hold_s` changed: 4 s did not rescue the ILC
     /// site2/F3 walker's steps (the calibrated-PDR figures stayed 3.39 / 12.92 m), and on
     /// IPIN 2 / 4 / 8 s give `pmf` EvAAL 9.57 / 9.38 / 9.13.
     pub release_hold_s: f64,
     /// Smoothed rotation rate above which a step is also rejected when the phone tumbles,
-    /// rad/s (1.5 by default since session 19; `None`: no such test, the gate of sessions
-    /// 9-18; the papers' preset has no gate). Tumbling = the rotation is not about one axis: the
+    /// rad/s (1.5 by default; `None`: no such test, the single-threshold gate; the papers'
+    /// preset has no gate). Tumbling = the rotation is not about one axis: the
     /// largest eigenvalue of the gyroscope's second-moment matrix over `axis_window_s` holds
     /// less than `max_axis_share` of its trace. Handling turns the phone about every axis
     /// (share 0.50 / 0.64 / 0.80 at the 10th / 50th / 90th percentile, IPIN steps before the
     /// first POSI point above 1.5 rad/s), a swung or turned phone about one (0.89 / 0.93 /
-    /// 0.95, ILC walking steps above 1.5 rad/s). Measured in session 19
-    /// (`docs/results/accuracy.md` "Session 19"): IPIN causal `pmf` 6.78 -> 6.77 m, EvAAL
+    /// 0.95, ILC walking steps above 1.5 rad/s; `cargo run -p wipdr --example handling_steps`).
+    /// Measured by `wipdr eval` against `tumbling_rad_s = "off"` (`docs/experiments.md`):
+    /// IPIN causal `pmf` 6.78 -> 6.77 m, EvAAL
     /// 9.43 -> 9.31, every causal IPIN scheme better (`tcpf` 9.13 -> 8.38); every ILC
     /// scheme within 0.03 m (`pmf` 4.98 unchanged, PDR from the truth 2.78 -> 2.77); IPIN
     /// offline `pmf` EvAAL 6.38 -> 6.75.
@@ -346,7 +350,7 @@ mod tests {
         });
         assert!(tumble.axis_share() < 0.85, "{}", tumble.axis_share());
         assert!(tumble.handling(&cfg));
-        // Without the test (sessions 9-18) the same tumbling below 3 rad/s is kept.
+        // Without the test (the single-threshold gate) the same tumbling below 3 rad/s is kept.
         let single = HandlingConfig {
             tumbling_rad_s: None,
             ..cfg

@@ -110,7 +110,7 @@ impl Default for PositionerConfig {
 /// no online RSSI threshold (paper: top 2, -85 / -75 dBm), WKNN over the shared APs with
 /// `lambda = 80` and the detection weighting at `detection_mid_db = 20` (-90 dBm with not
 /// heard = -110; [`wipdr_fingerprint::distance::SharedAp`]: chosen on both buildings,
-/// `docs/results/accuracy.md` "Session 10"; before: `lambda = 60`, no weighting).
+/// `docs/experiments.md`, detection weighting; before: `lambda = 60`, no weighting).
 pub fn recommended_matcher() -> MatcherConfig {
     match MatcherConfig::defaults_for("apindex") {
         Ok(MatcherConfig::Apindex(c)) => {

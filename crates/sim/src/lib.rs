@@ -30,7 +30,7 @@
 //! - **Survey** ([`survey`]): a radio map on a grid along the corridors and in the hall, and
 //!   held-out queries, in the fingerprint-benchmark CSV layout.
 //!
-//! Heading convention: clockwise from `+y` (`../shared/docs/algorithms.md`). Every parameter is
+//! Heading convention: clockwise from `+y` (`docs/algorithms.md`). Every parameter is
 //! a field of [`SimConfig`] (serde, `Default`). Random draws come from ChaCha8 streams of one
 //! seed: the access points, the magnetic disturbances, the survey and each walk's motion, IMU,
 //! Wi-Fi and waypoints have their own stream, so walk `i` is the same whatever the number of

@@ -1,5 +1,5 @@
 //! `wipdr pdr-eval`: PDR on recorded walks under the protocol folds
-//! (`../shared/docs/evaluation.md`).
+//! (`docs/evaluation.md`).
 //!
 //! For each floor and fold, the step-length coefficients (every model) and the heading
 //! offset (every source) are fitted on the training walks' waypoint legs by the evaluation's

@@ -211,7 +211,7 @@ pub enum TieBreakNoise {
     },
 }
 
-/// Affinity-propagation settings (defaults: paper 001 / algorithms.md).
+/// Affinity-propagation settings (defaults: paper 001 / `docs/algorithms.md`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AffinityConfig {

@@ -6,7 +6,7 @@
 //!   forward-backward product on its lattice ([`crate::PointMassFilter::smooth_walk`]; with
 //!   heading hypotheses, each one's, weighed by evidence: [`PointMassMixture::smooth_walk`]).
 //!
-//! Tried and not kept (session 6, `docs/results/accuracy.md`): placing the PDR shape onto all
+//! Tried and not kept (`docs/experiments.md`, whole-walk alignment): placing the PDR shape onto all
 //! of a walk's Wi-Fi fixes by a locally weighted robust rigid fit: 5.9-6.4 m pooled on the
 //! five ILC floors against 5.65 m for the two-filter `pmf` (both with the old defaults).
 

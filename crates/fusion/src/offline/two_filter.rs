@@ -11,12 +11,13 @@
 //! The joined covariance is covariance intersection's with weight one half (Julier and
 //! Uhlmann 1997): `P = (Pf⁻¹ / 2 + Pb⁻¹ / 2)⁻¹`, twice the Gaussian product's, with the
 //! product's mean. The two directions see disjoint inputs but share the walk's Wi-Fi bias
-//! (a fix error common to the walk: 40 % of the ILC fixes' error variance, docs/results/
-//! accuracy.md "Sessions 15-16") and the common prior; covariance intersection is never
-//! overconfident whatever that correlation, where the product, which assumes none, shrank
-//! the radius: session 21 measured the offline 95 % radii of `aws`, `tcpf`, `pf`, `apf`,
-//! `rof` at 80-84 % coverage on IPIN and 91-93 % on the ILC floors with the product, 91-94 %
-//! and 96-97 % with this (docs/results/accuracy.md "Session 21"). No estimate moves.
+//! (a fix error common to the walk: 40 % of the ILC fixes' error variance,
+//! `docs/results/fix_errors.py`, docs/experiments.md) and the common prior; covariance
+//! intersection is never overconfident whatever that correlation, where the product, which
+//! assumes none, shrank the radius: `wipdr eval --offline` measured the offline 95 % radii
+//! of `aws`, `tcpf`, `pf`, `apf`, `rof` at 80-84 % coverage on IPIN and 91-93 % on the ILC
+//! floors with the product, 91-94 % and 96-97 % with this (docs/results/accuracy.md,
+//! docs/experiments.md). No estimate moves.
 
 use nalgebra::Matrix2;
 use wipdr_core::{Point2, StepEvent, TimestampMs, WifiObservation, angle};

@@ -9,8 +9,8 @@ use crate::FusionError;
 pub const PMF_BIAS_SHARE: f64 = 0.2;
 
 /// Config of `pmf`. The defaults were chosen on the five ILC floors (`docs/sweeps/pmf-grid.toml`,
-/// `docs/sweeps/pmf-session7.toml`; docs/results/accuracy.md), so they are optimistic there;
-/// [`PointMassConfig::paper`] keeps the settings before the session-7 sweep.
+/// `docs/sweeps/pmf-outlier-gap-wifi-sd.toml`; docs/experiments.md), so they are optimistic there;
+/// [`PointMassConfig::paper`] keeps the settings before the second of those sweeps.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PointMassConfig {
@@ -22,9 +22,9 @@ pub struct PointMassConfig {
     /// Variance added to the offset per step (PDR drift), m².
     pub drift_m2_per_step: f64,
     /// Weight of a hypothesis whose position is inside a unit (a shop), per step (0.65;
-    /// [`PointMassConfig::paper`]: 0.8). 0.65 since session 18: ILC causal 5.03 -> 4.98 m,
+    /// [`PointMassConfig::paper`]: 0.8). 0.65 measured ILC causal 5.03 -> 4.98 m against 0.8,
     /// offline 4.02 -> 3.84 m, better offline on every floor
-    /// (`docs/sweeps/pmf-session18-walls.toml`, docs/results/accuracy.md "Session 18");
+    /// (`just sweep docs/sweeps/pmf-unit-likelihood.toml s.csv`, docs/experiments.md);
     /// harder (0.5) lowers the median further but places some walks in the wrong corridor.
     pub unit_likelihood: f64,
     /// Weight of a hypothesis whose position is outside the floor outline, per step.
@@ -53,10 +53,10 @@ pub struct PointMassConfig {
     pub estimate_radius_m: f64,
     /// Report the posterior's geometric median within `estimate_radius_m` of the mode (the
     /// point of least expected error, the metric the evaluation scores) instead of its mean
-    /// (true; [`PointMassConfig::paper`]: false, the mean). True since session 16: ILC causal
+    /// (true; [`PointMassConfig::paper`]: false, the mean). The median measured ILC causal
     /// 5.05 -> 5.03 m, better or equal on every floor; IPIN causal mean 7.05 unchanged, its
-    /// EvAAL 9.78 -> 9.82 m slightly worse (`docs/sweeps/pmf-session16-median.toml`,
-    /// docs/results/accuracy.md "Sessions 15-16").
+    /// EvAAL 9.78 -> 9.82 m slightly worse (`just sweep docs/sweeps/pmf-estimate-median.toml
+    /// s.csv`, docs/experiments.md).
     pub estimate_median: bool,
     /// Standard deviation added (in quadrature, per axis) to the posterior's spread in the
     /// reported covariance, metres: the walker's offset from the placed PDR track (its local
@@ -73,11 +73,11 @@ pub struct PointMassConfig {
     /// the distance counts up to `gap_distance_m` plus two cells), metres per metre: in a
     /// coverage gap the fixes share a bias the lattice cannot see, so the radius grows there.
     /// Needs the coverage raster (`gap_distance_m` > 0 and the map's reference points).
-    /// Moves no estimate. 1.0 since session 21 ([`PointMassConfig::paper`]: 0, off): the
+    /// Moves no estimate. 1.0 ([`PointMassConfig::paper`]: 0, off) measured against 0: the
     /// share of scored waypoints inside the 95 % radius went 94.3 -> 95.9 % on the five ILC
     /// floors (66.7 -> 83.3 % of those 12 m or more from coverage) and 79.8 -> 86.0 % on
     /// IPIN, the median radius 9.3 -> 9.8 m and 10.9 -> 11.6 m
-    /// (`docs/sweeps/pmf-session21-gap-radius.toml`, docs/results/accuracy.md "Session 21").
+    /// (`just sweep docs/sweeps/pmf-gap-radius.toml s.csv`, docs/experiments.md).
     /// wipdr's own (no paper value).
     pub gap_radius_sd_per_m: f64,
     /// Signal distance of a fix's best candidate at which its Gaussian part is halved (the
@@ -90,7 +90,7 @@ pub struct PointMassConfig {
     /// power `max(min_fix_weight, min(1, d / fix_decorrelation_m))`: fixes taken standing
     /// still repeat one biased answer and count as a fraction of one. Off by default: it
     /// helps the IPIN logfiles' standing minute and costs the ILC floors
-    /// (`docs/results/accuracy.md`, "Session 9"). wipdr's own.
+    /// (`docs/experiments.md`, fix decorrelation). wipdr's own.
     pub fix_decorrelation_m: f64,
     /// Least power of a fix's Gaussian part (see `fix_decorrelation_m`), in (0, 1].
     pub min_fix_weight: f64,
@@ -98,8 +98,8 @@ pub struct PointMassConfig {
     pub mode_radius_m: f64,
     /// Keep the previous mode while it holds at least this share of the best mode's mass
     /// (1: only while it ties with the best, no stickiness; [`PointMassConfig::paper`]: 0.5).
-    /// 1 since session 14: ILC causal 5.10 -> 5.05 m, better or equal on every floor
-    /// (`docs/sweeps/pmf-session14-mode.toml`, docs/results/accuracy.md "Session 14").
+    /// 1 measured ILC causal 5.10 -> 5.05 m against 0.5, better or equal on every floor
+    /// (`just sweep docs/sweeps/pmf-mode-hysteresis.toml s.csv`, docs/experiments.md).
     pub mode_hysteresis: f64,
     /// Multiplies every step length (1 = as PDR reports).
     pub step_scale: f64,
@@ -119,13 +119,13 @@ pub struct PointMassConfig {
     /// ([`crate::trails`]) in the per-step weight on every plan; 0 (the default and
     /// `paper()`): off where the plan has walls (a walkable raster), `planless_trail_sd_m`
     /// where it has none. Off when the filter is built without trails. With walls the trails
-    /// cost accuracy on the ILC floors (sweep `docs/sweeps/pmf-session8-trails.toml`,
-    /// docs/results/accuracy.md "Session 8"; docs/results/trails.md).
+    /// cost accuracy on the ILC floors (`just sweep docs/sweeps/pmf-trails.toml s.csv`,
+    /// docs/experiments.md; docs/results/trails.md).
     pub trail_sd_m: f64,
     /// Width of the training trails used when `trail_sd_m` is 0 and the filter has no
     /// walkable raster (a plan without an outline: the IPIN logfiles, ILC sites read as one
     /// building), where the trails are the only knowledge of where people walk. Default 6 m
-    /// (sweep `docs/sweeps/pmf-session16-planless-trails.toml`: IPIN causal 7.05 -> 6.78 m,
+    /// (sweep `docs/sweeps/pmf-planless-trails.toml`: IPIN causal 7.05 -> 6.78 m,
     /// EvAAL 9.82 -> 9.43; offline 6.08 -> 5.82, EvAAL 6.70 -> 6.38; ILC sites as buildings
     /// 6.07 -> 5.51); `paper()`: 0 (off).
     pub planless_trail_sd_m: f64,
@@ -141,8 +141,8 @@ pub struct PointMassConfig {
     /// the fix's Gaussian (sensor-resetting localisation, Lenser and Veloso 2000; the
     /// fast / slow evidence ratio of augmented MCL, Thrun et al., Probabilistic Robotics 8.3.5).
     /// Off by default: on both buildings it follows biased fixes out of good placements
-    /// (0.3 / 0.03 / 0.1: ILC causal 5.10 -> 5.13, IPIN 7.00 -> 8.67; `docs/results/accuracy.md`,
-    /// "Session 13"). For streams whose placement can be lost outright (a kidnapped walker).
+    /// (0.3 / 0.03 / 0.1: ILC causal 5.10 -> 5.13, IPIN 7.00 -> 8.67; `docs/experiments.md`,
+    /// `docs/sweeps/pmf-sensor-reset.toml`). For streams whose placement can be lost.
     pub evidence_fast_rate: f64,
     /// Rate of the slow running mean of the fixes' evidence, per fix, in `[0, 1]`.
     pub evidence_slow_rate: f64,
@@ -208,11 +208,10 @@ impl Default for PointMassConfig {
 
 impl PointMassConfig {
     /// `pmf` is wipdr's own scheme, in no paper: its preset is the settings it had before the
-    /// five-floor sweeps of session 7 (`wifi_outlier` 0.1, `gap_sd_m` 20 m, `wifi_sd_m` 6 m)
-    /// of session 14 (`mode_hysteresis` 0.5), of session 16 (`estimate_median` false: the
-    /// mean), of session 17 (no planless trails), of session 18 (`unit_likelihood` 0.8) and
-    /// of session 21 (no gap term in the radius), which earlier figures in `docs/results/`
-    /// were measured with.
+    /// five-floor sweeps that set its defaults (`wifi_outlier` 0.1, `gap_sd_m` 20 m, `wifi_sd_m`
+    /// 6 m, `mode_hysteresis` 0.5, `estimate_median` false: the mean, no planless trails,
+    /// `unit_likelihood` 0.8, no gap term in the radius), the settings the "before" figures
+    /// of `docs/experiments.md` were measured with.
     pub fn paper() -> Self {
         Self {
             wifi_sd_m: 6.0,

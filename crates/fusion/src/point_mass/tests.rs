@@ -111,7 +111,7 @@ fn estimate_x_with_fixes_in_the_block(cfg: PointMassConfig) -> f64 {
 
 #[test]
 fn the_shipped_unit_weight_holds_the_corridor_harder_than_the_preset() {
-    // Session 18 made the unit weight 0.65 (the preset keeps 0.8): fixes that keep pointing
+    // The shipped unit weight is 0.65 (the preset keeps 0.8): fixes that keep pointing
     // into a shop pull the estimate less far off the corridor the walker is in.
     let shipped = PointMassConfig::default();
     assert_eq!(shipped.unit_likelihood, 0.65);
