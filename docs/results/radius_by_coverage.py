@@ -7,7 +7,7 @@ in coverage gaps (docs/results/accuracy.md, "Session 20").
 
 Standard library only:
 
-    wipdr eval --data ../shared/data/ipin2023 --schemes pmf --json ipin.json
+    wipdr eval --data $WIPDR_DATA/ipin2023 --schemes pmf --json ipin.json
     python3 docs/results/radius_by_coverage.py ipin.json [pmf]
 """
 import collections
