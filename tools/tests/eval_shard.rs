@@ -1,7 +1,7 @@
 //! `wipdr eval --shard I/4` four times, then `wipdr eval merge`, writes byte for byte the JSON
 //! of the unsharded `wipdr eval --json`: on the fixture floor, and on a real ILC floor when
-//! it is under the data root (`$WIPDR_DATA`, else `../shared/data`). Merges of an incomplete set, a repeated shard or shards of
-//! another run are refused.
+//! it is under the data root (`$WIPDR_DATA`, else `../shared/data`). Merges of an incomplete
+//! set, a repeated shard or shards of another run are refused.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -5,9 +5,9 @@
 //! ```
 //!
 //! Default floors: `ilc20/site2/F2` and `site2/F3` under the data root (`$WIPDR_DATA`, else
-//! `../shared/data` beside the workspace; `wipdr_io::data_root()`). Skips with a printed reason when the data is absent. Per floor, the radio map
-//! is built like the evaluation pipeline's fold 0 (training walks = folds 1-4,
-//! `WalkMapConfig::default()`); then:
+//! `../shared/data` beside the workspace; `wipdr_io::data_root()`). Skips with a printed
+//! reason when the data is absent. Per floor, the radio map is built like the evaluation
+//! pipeline's fold 0 (training walks = folds 1-4, `WalkMapConfig::default()`); then:
 //!
 //! 1. the fit over all APs (counts, median RMSE / exponent, wall time);
 //! 2. the extension over the floor plan's walkable area (points added, wall time);

@@ -1,5 +1,6 @@
 //! Shared by the eval integration tests: the committed synthetic fixture floor, and the real
-//! ILC floors when they are under the data root (`$WIPDR_DATA`, else `../shared/data`). Each test binary uses only some of these.
+//! ILC floors when they are under the data root (`$WIPDR_DATA`, else `../shared/data`). Each
+//! test binary uses only some of these.
 #![allow(dead_code)]
 
 use std::path::PathBuf;
