@@ -6,7 +6,10 @@
 //! crate is compiled, from its own location in the workspace, so tests (which cargo runs with
 //! their crate's folder as the working directory), benches, examples and the program (run from
 //! anywhere) all look in the same place. A relative `WIPDR_DATA` is taken relative to the
-//! workspace root, the folder the README's commands run in, for the same reason.
+//! workspace root, the folder the README's commands run in, for the same reason. Being fixed
+//! at compile time, the default follows the checkout the crate was compiled in: a build
+//! reused from another checkout (a shared `CARGO_TARGET_DIR` that cargo finds fresh) or a
+//! checkout moved after building looks beside the old place; set `WIPDR_DATA` then.
 //!
 //! The commands of the program never read the root themselves: they take the folders and
 //! files to read as arguments (`wipdr eval --data $WIPDR_DATA/ilc20/site1/F1`). Tests, benches
