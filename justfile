@@ -1,6 +1,7 @@
 # wipdr shortcuts (cargo commands underneath). `just --list` shows them.
 
-data := "../shared/data"
+# The real data root: $WIPDR_DATA, else ../shared/data beside the repository (README, "Real data").
+data := env_var_or_default("WIPDR_DATA", "../shared/data")
 floors := data + "/ilc20/site1/F1 " + data + "/ilc20/site1/F2 " + data + "/ilc20/site2/F1 " + data + "/ilc20/site2/F2 " + data + "/ilc20/site2/F3"
 
 # The demo on the embedded fixtures (the README's first command).

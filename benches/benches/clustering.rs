@@ -8,7 +8,7 @@
 //! Also the matchers `apc`, `apindex`, `med` on UJI1 beside brute-force WKNN.
 //!
 //! `cargo bench -p wipdr-benches --bench clustering`. Skips (with a message) when
-//! `../shared/data` is absent.
+//! the data root (`$WIPDR_DATA`, else `../shared/data`) lacks the data.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -26,16 +26,13 @@ use wipdr_fingerprint::{
 use wipdr_io::fingerprint_csv::{NOT_DETECTED, read_dataset, read_fingerprint_csv};
 
 fn data_dir() -> PathBuf {
-    PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/fingerprint"
-    ))
+    wipdr_io::data_root().join("fingerprint")
 }
 
 fn tut3_similarity(rows: usize) -> Option<SimilarityMatrix<f32>> {
     let path = data_dir().join("TUT3/test.csv");
     if !path.exists() {
-        eprintln!("skipping: {} not found", path.display());
+        eprintln!("skipping: {} not found (WIPDR_DATA)", path.display());
         return None;
     }
     let table = read_fingerprint_csv(&path).ok()?;
@@ -91,7 +88,7 @@ fn bench_affinity(c: &mut Criterion) {
 fn bench_matchers_uji1(c: &mut Criterion) {
     let dir = data_dir().join("UJI1");
     if !dir.join("train.csv").exists() {
-        eprintln!("skipping: {} not found", dir.display());
+        eprintln!("skipping: {} not found (WIPDR_DATA)", dir.display());
         return;
     }
     let (train, test) = read_dataset(&dir).unwrap();

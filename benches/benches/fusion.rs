@@ -1,7 +1,8 @@
 //! Fusion benchmarks: one EKF step + Wi-Fi update (goal: well under 1 µs), and `apf` with
 //! 1,000 particles and walls per step, on a synthetic ring-corridor floor plan and, when
-//! `../shared/data` exists, on the real floor plan of ILC site1/F1 (1,000+ wall segments)
-//! with a real walk's PDR steps and Wi-Fi fixes (throughput in steps per second).
+//! `ilc20/site1/F1` is under the data root (`$WIPDR_DATA`, else `../shared/data`), on the
+//! real floor plan of ILC site1/F1 (1,000+ wall segments) with a real walk's PDR steps and
+//! Wi-Fi fixes (throughput in steps per second).
 //!
 //! ```text
 //! cargo bench -p wipdr-benches --bench fusion
@@ -99,15 +100,14 @@ type RealWalk = (
 /// radio map of the floor's other walks. `None` (with a printed reason) without the data.
 fn real_walk() -> Option<RealWalk> {
     use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, QueryFilter, walk_map};
-    let dir = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ilc20/site1/F1"
-    );
-    if !std::path::Path::new(dir).is_dir() {
-        eprintln!("apf_real skipped: {dir} not found");
-        return None;
-    }
-    let floor = wipdr_io::floor::read_floor_dir(dir, &Default::default()).ok()?;
+    let dir = match wipdr_io::real_data("ilc20/site1/F1") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("apf_real skipped: {missing}");
+            return None;
+        }
+    };
+    let floor = wipdr_io::floor::read_floor_dir(&dir, &Default::default()).ok()?;
     // The longest walk is the test walk; the others make the radio map.
     let longest = (0..floor.walks.len()).max_by(|&a, &b| {
         floor.walks[a]

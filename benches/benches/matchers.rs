@@ -1,12 +1,11 @@
 //! Matcher speed: single-query latency and batch throughput of the brute-force matchers on
-//! UJI1 (19,861 x 520; skipped with a message when `../shared/data` is absent) and on a small
-//! synthetic map (always).
+//! UJI1 (19,861 x 520; skipped with a message when it is not under `$WIPDR_DATA`, else
+//! `../shared/data`) and on a small synthetic map (always).
 //!
 //! `cargo bench -p wipdr-benches --bench matchers`
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
-use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_core::Point2;
 use wipdr_fingerprint::radio_map::{ApVocabulary, ReferencePoint};
@@ -17,17 +16,13 @@ use wipdr_fingerprint::{
 use wipdr_io::fingerprint_csv::read_dataset;
 
 fn uji1() -> Option<(Arc<RadioMap>, Vec<Query>)> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/fingerprint/UJI1"
-    ));
-    if !dir.is_dir() {
-        eprintln!(
-            "matchers bench: {} not found, UJI1 benches skipped",
-            dir.display()
-        );
-        return None;
-    }
+    let dir = match wipdr_io::real_data("fingerprint/UJI1") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("matchers bench: UJI1 benches skipped: {missing}");
+            return None;
+        }
+    };
     let (train, test) = read_dataset(&dir).ok()?;
     let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).ok()?);
     let queries = (0..test.n_rows())

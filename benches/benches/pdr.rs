@@ -1,8 +1,9 @@
 //! PDR pipeline speed: every IMU stream of a walk in, step events out (`Pdr::run_detailed`:
 //! step detection, all four heading sources, ZUPT filter, motion state), on the longest
-//! walk of `site1/F1` (skipped with a message when `../shared/data` is absent) and on a
-//! one-minute synthetic walk (always). Goal: at least 10,000x real time (a one-minute walk
-//! in under 6 ms on one core); the walk's duration is printed to turn the time into a ratio.
+//! walk of `site1/F1` (skipped with a message when it is not under `$WIPDR_DATA`, else
+//! `../shared/data`) and on a one-minute synthetic walk (always). Goal: at least 10,000x
+//! real time (a one-minute walk in under 6 ms on one core); the walk's duration is printed
+//! to turn the time into a ratio.
 //!
 //! `cargo bench -p wipdr-benches --bench pdr`
 
@@ -13,17 +14,13 @@ use wipdr_core::Walk;
 use wipdr_pdr::{Pdr, PdrConfig};
 
 fn real_walk() -> Option<Walk> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ilc20/site1/F1/path_data_files"
-    ));
-    if !dir.is_dir() {
-        eprintln!(
-            "pdr bench: {} not found, real-walk bench skipped",
-            dir.display()
-        );
-        return None;
-    }
+    let dir = match wipdr_io::real_data("ilc20/site1/F1/path_data_files") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("pdr bench: real-walk bench skipped: {missing}");
+            return None;
+        }
+    };
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .ok()?
         .filter_map(|e| e.ok().map(|e| e.path()))

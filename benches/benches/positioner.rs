@@ -1,6 +1,7 @@
-//! The online `Positioner` on a real walk (ILC site1/F1, when `../shared/data` exists; else
-//! the committed synthetic fixture floor): the walk's raw samples pushed one by one, the
-//! site model of the walk's protocol fold (default eval config).
+//! The online `Positioner` on a real walk (ILC site1/F1, when it is under the data root,
+//! `$WIPDR_DATA` else `../shared/data`; else the committed synthetic fixture floor): the
+//! walk's raw samples pushed one by one, the site model of the walk's protocol fold (default
+//! eval config).
 //!
 //! - `positioner_sample/{ekf,pmf}`: throughput in samples (criterion's time per element is
 //!   the per-sample cost, all sensors and scans averaged).
@@ -21,25 +22,19 @@ use wipdr_eval::pipeline::{EvalConfig, FloorInput};
 use wipdr_positioning::{Sample, StreamSpec, samples_of};
 
 fn floor() -> FloorInput {
-    let real = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ilc20/site1/F1"
-    ));
-    let dir = if real.is_dir() {
-        real
-    } else {
-        eprintln!(
-            "positioner: {} not found, using the fixtures",
-            real.display()
-        );
-        let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim"));
-        let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
-            .expect("fixtures/sim")
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.join("floor_info.json").is_file())
-            .collect();
-        dirs.sort();
-        dirs.remove(0)
+    let dir = match wipdr_io::real_data("ilc20/site1/F1") {
+        Ok(real) => real,
+        Err(missing) => {
+            eprintln!("positioner: using the fixtures: {missing}");
+            let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim"));
+            let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
+                .expect("fixtures/sim")
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.join("floor_info.json").is_file())
+                .collect();
+            dirs.sort();
+            dirs.remove(0)
+        }
     };
     let data = wipdr_io::floor::read_floor_dir(&dir, &Default::default()).expect("floor reads");
     FloorInput::new(dir.display().to_string(), data.into_floor())

@@ -1,7 +1,7 @@
 //! Site model files: size and load time (read, checks, matcher and plan indexes built) of a
 //! model fit on all walks of each of the five ILC floors and of the 29 IPIN logfiles, when
-//! `../shared/data` exists (else of the committed fixture floor). The fit's wall time and
-//! the file's size are printed once per model.
+//! they are under the data root (`$WIPDR_DATA`, else `../shared/data`), else of the committed
+//! fixture floor. The fit's wall time and the file's size are printed once per model.
 //!
 //! `cargo bench -p wipdr-benches --bench site_model`
 
@@ -13,7 +13,7 @@ use wipdr_eval::pipeline::EvalConfig;
 use wipdr_positioning::site_model::{SiteModel, TrainingData};
 
 fn places() -> Vec<(String, PathBuf)> {
-    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
+    let root = wipdr_io::data_root();
     let real: Vec<(String, PathBuf)> = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"]
         .iter()
         .map(|f| (format!("ilc {f}"), root.join("ilc20").join(f)))
@@ -22,7 +22,7 @@ fn places() -> Vec<(String, PathBuf)> {
         .collect();
     if real.is_empty() {
         eprintln!(
-            "site_model: no real data at {}, using the fixtures",
+            "site_model: no real data at {} (set WIPDR_DATA to the data root), using the fixtures",
             root.display()
         );
         let fixture = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"));

@@ -7,7 +7,7 @@ similarity = negative squared Euclidean distance, preference = median of all sim
 (scikit-learn's default), damping 0.9, max_iter 200, convergence_iter 15.
 
     python3 benches/peers/affinity_speed.py \
-        --csv ../shared/data/fingerprint/TUT3/test.csv --rows 2000 3951 \
+        --csv $WIPDR_DATA/fingerprint/TUT3/test.csv --rows 2000 3951 \
         --wipdr target/release/wipdr
 
 Prints one line per (implementation, N): seconds, iterations, cluster count, and whether the

@@ -10,7 +10,7 @@ queries per second (wall clock of the whole batch, matching only, like `predict`
 
     pip install scikit-learn   # not part of CI
     cargo build --release -p wipdr
-    python3 benches/peers/knn_speed.py --dataset ../shared/data/fingerprint/UJI1 \
+    python3 benches/peers/knn_speed.py --dataset $WIPDR_DATA/fingerprint/UJI1 \
         --wipdr target/release/wipdr
 
 Single-query latency of wipdr is measured by the criterion bench

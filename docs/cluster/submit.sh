@@ -2,7 +2,7 @@
 # Submits a sharded wipdr eval or sweep to Slurm: the array job, then the merge as a job that
 # runs only when every array task succeeded (--dependency=afterok). Prints both job ids.
 #
-#   docs/cluster/submit.sh eval 8     # WIPDR_DATA, WIPDR_OUT (, WIPDR_CACHE_DIR) set
+#   docs/cluster/submit.sh eval 8     # WIPDR_FLOORS, WIPDR_OUT (, WIPDR_CACHE_DIR) set
 #   docs/cluster/submit.sh sweep 16   # WIPDR_SWEEP too
 #
 # Extra sbatch options (partition, account, time) go in SBATCH_* variables, which sbatch

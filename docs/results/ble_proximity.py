@@ -3,7 +3,7 @@
 
 Standard library only; reads the data in place:
 
-    python3 docs/results/ble_proximity.py [../shared/data/ipin2023]
+    python3 docs/results/ble_proximity.py [DIR, default $WIPDR_DATA/ipin2023]
 
 Prints (1) the true distance from the phone (POSI interpolated) to the beacon position listed
 in BLE_Locations.csv, by RSSI bin and by same / other floor, and per beacon for readings of
@@ -19,8 +19,10 @@ import math
 import os
 import sys
 
-DATA = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
-    os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ipin2023")
+# The data root: $WIPDR_DATA (relative to the repository), else ../shared/data beside it.
+REPO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+DATA_ROOT = os.path.join(REPO, os.environ.get("WIPDR_DATA") or os.path.join("..", "shared", "data"))
+DATA = sys.argv[1] if len(sys.argv) > 1 else os.path.join(DATA_ROOT, "ipin2023")
 LAT0, LON0 = 49.4611, 11.1110
 
 

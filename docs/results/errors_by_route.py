@@ -8,7 +8,7 @@ Tells whether a building's error sits in a few routes and whether those are cove
 
 Standard library only:
 
-    wipdr eval --data ../shared/data/ipin2023 --schemes pmf --json ipin.json
+    wipdr eval --data $WIPDR_DATA/ipin2023 --schemes pmf --json ipin.json
     python3 docs/results/errors_by_route.py ipin.json [pmf]
 """
 import json

@@ -8,9 +8,10 @@
 #
 #   bash docs/results/ipin_walk_folds.sh [DATA_DIR] [-- extra `wipdr eval` arguments]
 #
+# DATA_DIR defaults to $WIPDR_DATA/ipin2023 ($WIPDR_DATA defaulting to ../shared/data).
 # WIPDR_BIN picks the binary (default target/release/wipdr).
 set -euo pipefail
-data="${1:-../shared/data/ipin2023}"
+data="${1:-${WIPDR_DATA:-../shared/data}/ipin2023}"
 [ "$#" -gt 0 ] && shift
 [ "${1:-}" = "--" ] && shift
 bin="${WIPDR_BIN:-target/release/wipdr}"

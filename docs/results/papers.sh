@@ -8,7 +8,7 @@
 # Run from anywhere; it works from the repository root. Environment:
 #   WIPDR   the program (default target/release/wipdr; build it with
 #           `cargo build --release -p wipdr`)
-#   DATA    the ILC floors (default ../shared/data/ilc20)
+#   DATA    the ILC floors (default $WIPDR_DATA/ilc20, $WIPDR_DATA defaulting to ../shared/data)
 #   WORK    scratch folder for JSON and sweep CSVs (default target/papers)
 #   SCHEMES the schemes of the all-schemes table (default: every scheme)
 #
@@ -22,7 +22,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 
 WIPDR=${WIPDR:-target/release/wipdr}
-DATA=${DATA:-../shared/data/ilc20}
+DATA=${DATA:-${WIPDR_DATA:-../shared/data}/ilc20}
 WORK=${WORK:-target/papers}
 SCHEMES=${SCHEMES:-wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf}
 # Schemes with a tuning sweep docs/sweeps/tune-<name>.toml; apf-med is MED + APF.

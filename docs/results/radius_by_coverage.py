@@ -7,7 +7,7 @@ in coverage gaps (docs/experiments.md, the radius by coverage).
 
 Standard library only:
 
-    wipdr eval --data ../shared/data/ipin2023 --schemes pmf --json ipin.json
+    wipdr eval --data $WIPDR_DATA/ipin2023 --schemes pmf --json ipin.json
     python3 docs/results/radius_by_coverage.py ipin.json [pmf]
 """
 import collections

@@ -6,7 +6,7 @@ training walks' starts could help `pmf`'s first waypoints (docs/experiments.md, 
 
 Standard library only; reads the data in place:
 
-    python3 docs/results/walk_starts.py [../shared/data/ilc20] [site1/F1 site1/F2 ...]
+    python3 docs/results/walk_starts.py [DIR, default $WIPDR_DATA/ilc20] [site1/F1 site1/F2 ...]
 """
 import glob
 import gzip
@@ -14,8 +14,10 @@ import math
 import os
 import sys
 
-DATA = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
-    os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ilc20")
+# The data root: $WIPDR_DATA (relative to the repository), else ../shared/data beside it.
+REPO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+DATA_ROOT = os.path.join(REPO, os.environ.get("WIPDR_DATA") or os.path.join("..", "shared", "data"))
+DATA = sys.argv[1] if len(sys.argv) > 1 else os.path.join(DATA_ROOT, "ilc20")
 FLOORS = sys.argv[2:] or ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"]
 FOLDS = 5
 

@@ -3,7 +3,8 @@
     python python/examples/push_cost.py [FLOOR_DIR] [--repeat 5]
 
 The walk and model of `cargo bench -p wipdr-benches --bench positioner`: the longest walk of
-the floor (default ILC site1/F1 when ../shared/data exists, else fixtures/sim/F1), the radio
+the floor (default ILC site1/F1 under $WIPDR_DATA, else ../shared/data, when it exists; else
+fixtures/sim/F1), the radio
 map and PDR calibration of its protocol fold (default config), a fresh Positioner per run,
 every raw sample pushed one at a time in stream order (the samples are put in order once,
 before timing; the Positioner is built before timing too). Prints the best of `--repeat`
@@ -14,6 +15,7 @@ difference is the binding's overhead.
 """
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -26,7 +28,9 @@ from streams import push_items, stream_order  # noqa: E402
 
 
 def main(argv=None):
-    real = REPO.parent / "shared" / "data" / "ilc20" / "site1" / "F1"
+    env = os.environ.get("WIPDR_DATA")
+    root = REPO / env if env else REPO.parent / "shared" / "data"
+    real = root / "ilc20" / "site1" / "F1"
     default = real if real.is_dir() else REPO / "fixtures" / "sim" / "F1"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("floor", nargs="?", default=str(default))

@@ -2,8 +2,10 @@
 
 - ``REPO``: the repository checkout (``python/tests/../..``).
 - ``FIXTURE_FLOOR``: the committed synthetic floor ``fixtures/sim/F1``.
-- ``DATA``: the shared real data (``$WIPDR_DATA``, else ``../shared/data`` beside the
-  checkout, as in CI); tests that need it skip with the reason when it is absent.
+- ``DATA``: the real data root, as ``wipdr_io::data_root()`` finds it: ``$WIPDR_DATA`` when
+  set and not empty (a relative path taken relative to the checkout), else
+  ``../shared/data`` beside the checkout (as in CI); tests that need it skip with the reason
+  when it is absent.
 - ``wipdr_bin``: the CLI (``$WIPDR_BIN``, else ``target/debug/wipdr`` or
   ``target/release/wipdr`` of the checkout); with ``CI`` set a missing CLI fails instead of
   skipping.
@@ -19,7 +21,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURE_FLOOR = REPO / "fixtures" / "sim" / "F1"
-DATA = Path(os.environ.get("WIPDR_DATA", REPO.parent / "shared" / "data"))
+_DATA_ENV = os.environ.get("WIPDR_DATA")
+DATA = REPO / _DATA_ENV if _DATA_ENV else REPO.parent / "shared" / "data"
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -81,7 +81,7 @@ def test_a_floor_built_from_arrays_evaluates_as_the_one_read():
     )
 
 
-@pytest.mark.skipif(not (DATA / "ilc20" / "site1" / "F1").is_dir(), reason=f"real data not found under {DATA}")
+@pytest.mark.skipif(not (DATA / "ilc20" / "site1" / "F1").is_dir(), reason=f"real data not found under {DATA} (set WIPDR_DATA to the data root)")
 def test_evaluate_equals_cli_json_on_a_real_floor(wipdr_bin, tmp_path):
     floor = DATA / "ilc20" / "site1" / "F1"
     cli = cli_eval_json(wipdr_bin, tmp_path, [floor], ["wifi", "ekf"])

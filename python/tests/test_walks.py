@@ -71,7 +71,7 @@ def test_read_floor_gives_plan_walks_and_folds():
         floor.walk("nope")
 
 
-@pytest.mark.skipif(not (DATA / "ipin2023").is_dir(), reason=f"IPIN data not found under {DATA}")
+@pytest.mark.skipif(not (DATA / "ipin2023").is_dir(), reason=f"IPIN data not found under {DATA} (set WIPDR_DATA to the data root)")
 def test_read_walk_reads_an_ipin_logfile_with_floors():
     trials = DATA / "ipin2023" / "trials"
     path = sorted(trials.glob("*.txt*"))[0]

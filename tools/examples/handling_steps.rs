@@ -4,8 +4,8 @@
 //! and asks each at every step whether it would reject it. Also the dominant-axis share of
 //! the rotation at the steps above 1.5 rad/s (10th / 50th / 90th percentile).
 //!
-//!     cargo run --release -p wipdr --example handling_steps -- ../shared/data/ipin2023/trials/*.gz
-//!     cargo run --release -p wipdr --example handling_steps -- ../shared/data/ilc20/site*/F*/path_data_files/*
+//!     cargo run --release -p wipdr --example handling_steps -- $WIPDR_DATA/ipin2023/trials/*.gz
+//!     cargo run --release -p wipdr --example handling_steps -- $WIPDR_DATA/ilc20/site*/F*/path_data_files/*
 use std::collections::BTreeMap;
 use wipdr_pdr::handling::{HandlingConfig, HandlingGate};
 use wipdr_pdr::{Pdr, PdrConfig};

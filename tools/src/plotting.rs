@@ -159,7 +159,7 @@ pub fn ensure_parent(out: &Path) -> Result<()> {
 /// A floor's raster plan (`floor_image.png`) placed in the metre frame of the waypoints.
 ///
 /// The image spans the floor: `[0, width] x [0, height]` metres (`floor_info.json`), the
-/// same box the GeoJSON is mapped onto (`../shared/data/README.md`). Image rows run from
+/// same box the GeoJSON is mapped onto (the data's README, `$WIPDR_DATA/README.md`). Image rows run from
 /// north to south, so row 0 is `y = height` (north at the top) and column 0 is `x = 0`.
 /// Transparent pixels are composited over white.
 #[derive(Debug, Clone)]
@@ -432,14 +432,13 @@ mod tests {
     /// image is aligned with the metre frame.
     #[test]
     fn real_waypoints_fall_in_the_image_corridors() {
-        let data = Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../shared/data/ilc20"
-        ));
-        if !data.is_dir() {
-            eprintln!("skipped: {} is absent", data.display());
-            return;
-        }
+        let data = match wipdr_io::real_data("ilc20") {
+            Ok(data) => data,
+            Err(missing) => {
+                eprintln!("skipped: {missing}");
+                return;
+            }
+        };
         for floor in ["site1/F1", "site2/F2"] {
             let dir = data.join(floor);
             let (width, height) =

@@ -1,7 +1,7 @@
 //! `wipdr eval --shard I/4` four times, then `wipdr eval merge`, writes byte for byte the JSON
 //! of the unsharded `wipdr eval --json`: on the fixture floor, and on a real ILC floor when
-//! `../shared/data` exists. Merges of an incomplete set, a repeated shard or shards of
-//! another run are refused.
+//! it is under the data root (`$WIPDR_DATA`, else `../shared/data`). Merges of an incomplete
+//! set, a repeated shard or shards of another run are refused.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -162,14 +162,13 @@ fn four_shards_merged_equal_the_unsharded_json_on_the_fixture() {
 
 #[test]
 fn four_shards_merged_equal_the_unsharded_json_on_a_real_floor() {
-    let floor = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ilc20/site2/F3"
-    ));
-    if !floor.is_dir() {
-        println!("skipped: {} not found (real data)", floor.display());
-        return;
-    }
+    let floor = match wipdr_io::real_data("ilc20/site2/F3") {
+        Ok(floor) => floor,
+        Err(missing) => {
+            println!("skipped: {missing}");
+            return;
+        }
+    };
     let dir = tempfile::tempdir().expect("temp dir");
     // The repository's parse cache, shared with the other real-data tests.
     let cache = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../"))

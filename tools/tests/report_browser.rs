@@ -226,14 +226,13 @@ fn the_fixture_report_renders_in_chromium_and_equals_the_one_from_its_json() {
 
 #[test]
 fn a_real_floor_report_renders_in_chromium() {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ilc20/site2/F3"
-    ));
-    if !dir.is_dir() {
-        eprintln!("skipped: {} is absent", dir.display());
-        return;
-    }
+    let dir = match wipdr_io::real_data("ilc20/site2/F3") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
+    };
     let tmp = tempfile::tempdir().unwrap();
     let (page, json) = (tmp.path().join("r.html"), tmp.path().join("r.json"));
     wipdr(

@@ -1,6 +1,6 @@
 //! `wipdr score` through the binary: the organisers' published estimates files give their
-//! printed table (when `../shared/data/ipin2023/scoring` exists), `--json`, and a malformed
-//! estimates line fails with the file, line and field named.
+//! printed table (when `ipin2023/scoring` is under `$WIPDR_DATA`, else `../shared/data`),
+//! `--json`, and a malformed estimates line fails with the file, line and field named.
 
 mod common;
 
@@ -8,15 +8,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn scoring_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/ipin2023/scoring"
-    ));
-    if !dir.is_dir() {
-        println!("skipped: {} not found", dir.display());
-        return None;
+    match wipdr_io::real_data("ipin2023/scoring") {
+        Ok(dir) => Some(dir),
+        Err(missing) => {
+            println!("skipped: {missing}");
+            None
+        }
     }
-    Some(dir)
 }
 
 #[test]

@@ -15,10 +15,6 @@ fn fixture_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"))
 }
 
-fn data_root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"))
-}
-
 /// The per-walk errors the evaluation reports for walk `id` of `floor` under `cfg`, for each
 /// of `schemes`: the walk's fold prepared and run by the library, as `wipdr eval` does.
 fn eval_errors(
@@ -214,13 +210,16 @@ fn fixture_logfiles_fit_save_load_locate_equals_eval_for_every_scheme() {
 
 #[test]
 fn real_ilc_floor_and_ipin_logfile_fit_locate_equals_eval() {
-    let root = data_root();
-    let floor = root.join("ilc20/site1/F1");
-    let trials = root.join("ipin2023/trials");
-    if !floor.is_dir() || !trials.is_dir() {
-        println!("skipped: no real data at {}", root.display());
-        return;
-    }
+    let (floor, trials) = match (
+        wipdr_io::real_data("ilc20/site1/F1"),
+        wipdr_io::real_data("ipin2023/trials"),
+    ) {
+        (Ok(floor), Ok(trials)) => (floor, trials),
+        (Err(missing), _) | (_, Err(missing)) => {
+            println!("skipped: {missing}");
+            return;
+        }
+    };
     let mut walks: Vec<PathBuf> = std::fs::read_dir(floor.join("path_data_files"))
         .unwrap()
         .map(|e| e.unwrap().path())

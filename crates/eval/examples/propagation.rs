@@ -4,10 +4,10 @@
 //! cargo run --release -p wipdr-eval --example propagation [FLOOR_DIR ...]
 //! ```
 //!
-//! Default floors: `../shared/data/ilc20/site2/F2` and `site2/F3` (relative to the
-//! workspace). Skips with a printed reason when the data is absent. Per floor, the radio map
-//! is built like the evaluation pipeline's fold 0 (training walks = folds 1-4,
-//! `WalkMapConfig::default()`); then:
+//! Default floors: `ilc20/site2/F2` and `site2/F3` under the data root (`$WIPDR_DATA`, else
+//! `../shared/data` beside the workspace; `wipdr_io::data_root()`). Skips with a printed
+//! reason when the data is absent. Per floor, the radio map is built like the evaluation
+//! pipeline's fold 0 (training walks = folds 1-4, `WalkMapConfig::default()`); then:
 //!
 //! 1. the fit over all APs (counts, median RMSE / exponent, wall time);
 //! 2. the extension over the floor plan's walkable area (points added, wall time);
@@ -32,7 +32,7 @@ use wipdr_io::floor::{ReadOptions, read_floor_dir};
 fn main() {
     let args: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
     let floors = if args.is_empty() {
-        let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/ilc20/site2");
+        let d = wipdr_io::data_root().join("ilc20/site2");
         vec![d.join("F2"), d.join("F3")]
     } else {
         args
@@ -40,7 +40,7 @@ fn main() {
     for dir in floors {
         if !dir.is_dir() {
             println!(
-                "skip {}: no such directory (real data absent)",
+                "skip {}: no such directory (real data absent; set WIPDR_DATA to the data root)",
                 dir.display()
             );
             continue;

@@ -436,14 +436,13 @@ mod tests {
     /// 4.74 m (chosen on test.csv by them), within 2 %. Measured: 4.74 m.
     #[test]
     fn real_tut1_reference_code_configuration_reaches_the_literature() {
-        let dir = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/fingerprint/TUT1"
-        );
-        if !std::path::Path::new(dir).exists() {
-            eprintln!("skipping: {dir} not found");
-            return;
-        }
+        let dir = match wipdr_io::real_data("fingerprint/TUT1") {
+            Ok(dir) => dir,
+            Err(missing) => {
+                eprintln!("skipped: {missing}");
+                return;
+            }
+        };
         let (train, test) = wipdr_io::fingerprint_csv::read_dataset(dir).unwrap();
         let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).unwrap());
         let m = KnnMatcher::new(

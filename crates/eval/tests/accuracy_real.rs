@@ -3,7 +3,7 @@
 //! radius holding the truth at 90-97 % of the scored waypoints, and `pmf` better than `wifi`.
 //! Measured (docs/results/accuracy.md): 4.98 / 13.61 m, 95.9 %,
 //! `wifi` 7.77 m; `wipdr eval --data $F --schemes wifi,pmf` gives the same figures. Skips
-//! with a reason when `../shared/data` is absent.
+//! with a reason when the data root (`$WIPDR_DATA`, else `../shared/data`) lacks the data.
 
 mod common;
 

@@ -1,9 +1,9 @@
 //! Accuracy on the public benchmarks against the scikit-learn reference of issue 3:
 //! 1-NN and distance-weighted 5-NN, Euclidean, "not heard" = -110 dBm, mean 2D error within
-//! 2 %. Runs only when `../shared/data/fingerprint` exists. The small datasets run by default;
+//! 2 %. Runs only when `fingerprint/` is under the data root
+//! (`$WIPDR_DATA`, else `../shared/data`). The small datasets run by default;
 //! all nine with `cargo test -p wipdr-eval --release -- --ignored`.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_eval::fingerprint_benchmark::{Truth, evaluate};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Query, QueryFilter, RadioMap, RadioMapConfig};
@@ -22,18 +22,13 @@ const REFERENCE: [(&str, f64, f64); 9] = [
     ("UJI1", 9.69, 9.11),
 ];
 
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/fingerprint"
-    ));
-    dir.is_dir().then_some(dir)
-}
-
 fn check(names: &[&str]) {
-    let Some(root) = data_dir() else {
-        eprintln!("skipped: ../shared/data/fingerprint not found");
-        return;
+    let root = match wipdr_io::real_data("fingerprint") {
+        Ok(root) => root,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
     };
     for &(name, ref_nn, ref_wknn) in REFERENCE.iter().filter(|r| names.contains(&r.0)) {
         let (train, test) = read_dataset(root.join(name)).unwrap();

@@ -1,4 +1,5 @@
-//! The cluster search on a real benchmark (DSI1, when `../shared/data/fingerprint` exists).
+//! The cluster search on a real benchmark (DSI1, when `fingerprint/DSI1` is under the
+//! data root, `$WIPDR_DATA` else `../shared/data`).
 //! Reads the benchmark CSVs through `wipdr_io`, hence here and not in `wipdr-fingerprint`.
 
 use std::sync::Arc;
@@ -11,14 +12,13 @@ use wipdr_fingerprint::{Matcher, Query, QueryFilter, RadioMap, RadioMapConfig};
 /// above brute-force WKNN (measured: 5.11 m vs 5.32 m, 5.4 % visited).
 #[test]
 fn real_dsi1_cluster_search_visits_a_quarter_at_brute_force_accuracy() {
-    let dir = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/fingerprint/DSI1"
-    );
-    if !std::path::Path::new(dir).exists() {
-        eprintln!("skipping: {dir} not found");
-        return;
-    }
+    let dir = match wipdr_io::real_data("fingerprint/DSI1") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
+    };
     let (train, test) = wipdr_io::fingerprint_csv::read_dataset(dir).unwrap();
     let map = Arc::new(RadioMap::from_table(&train, RadioMapConfig::default()).unwrap());
     let cfg = ClusterSearchConfig {

@@ -1,6 +1,7 @@
 //! The organisers' scorer reproduced: the two estimate files published for the IPIN 2023
 //! Track 3 scoring trials, scored against their ground truth, give `official_results.txt`
-//! (`../shared/data/ipin2023/scoring/`) in every column to its 0.01 m (skipped without the data).
+//! (`ipin2023/scoring/` under `$WIPDR_DATA`, else `../shared/data`) in every column to its
+//! 0.01 m (skipped without the data).
 
 mod common;
 

@@ -1,9 +1,10 @@
-//! The floor tracker on a real barometer (when `../shared/data/ipin2023` exists): the IPIN
-//! walk that changes floors (0 -> -2 -> 0 -> -2 -> 0 by the stairs) with weather drift of
-//! 1 hPa an hour and door steps of 0.15 hPa (on a floor) injected into its pressure keeps
-//! every floor the clean stream finds, and spends no more than 10 s on a wrong floor. The fixes vote for the
-//! true floor, every third one for the other mapped floor (the IPIN reference WKNN's floor hit
-//! rate per fix is 66 %); floor -1 is in the building but has no fingerprint.
+//! The floor tracker on a real barometer (when `ipin2023/` is under `$WIPDR_DATA`, else
+//! `../shared/data`): the IPIN walk that changes floors (0 -> -2 -> 0 -> -2 -> 0 by the
+//! stairs) with weather drift of 1 hPa an hour and door steps of 0.15 hPa (on a floor)
+//! injected into its pressure keeps every floor the clean stream finds, and spends no more
+//! than 10 s on a wrong floor. The fixes vote for the true floor, every third one for the
+//! other mapped floor (the IPIN reference WKNN's floor hit rate per fix is 66 %); floor -1
+//! is in the building but has no fingerprint.
 
 mod common;
 

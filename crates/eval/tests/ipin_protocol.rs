@@ -1,4 +1,5 @@
-//! The IPIN protocol on the 29 real logfiles (when `../shared/data/ipin2023` exists):
+//! The IPIN protocol on the 29 real logfiles (when `ipin2023/` is under the data
+//! root, `$WIPDR_DATA` else `../shared/data`):
 //! leave-one-route-out folds, every POSI point scored or counted, floors scored, EvAAL.
 //! The PDR baseline (true start, default PDR with calibration) is held to the reference
 //! pipeline's figure (4.27 m mean, issue 15) within 25 %; the floor estimate (Wi-Fi, the
@@ -8,21 +9,19 @@
 //! points (86.0 % measured by `wipdr eval --data ../shared/data/ipin2023 --schemes pmf`,
 //! docs/results/accuracy.md; 79.8 % without the gap term).
 
-use std::path::PathBuf;
 use wipdr_eval::pipeline::{EvalConfig, FloorInput, evaluate};
 use wipdr_io::ReadOptions;
 use wipdr_io::logfile_folder::read_logfile_dir;
 
 #[test]
 fn leave_one_route_out_with_floors_and_evaal() {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ipin2023"
-    ));
-    if !dir.is_dir() {
-        println!("skipped: IPIN data not found at {}", dir.display());
-        return;
-    }
+    let dir = match wipdr_io::real_data("ipin2023") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            println!("skipped: {missing}");
+            return;
+        }
+    };
     let data = read_logfile_dir(&dir, &ReadOptions::default()).unwrap();
     let posi: usize = data.walks.iter().map(|w| w.walk.waypoints.len()).sum();
     let floor = FloorInput::new("ipin2023", data.into_floor());

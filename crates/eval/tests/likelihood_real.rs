@@ -4,8 +4,8 @@
 //! likely cell's error beside WKNN's on the same scans (the raw walk map, no interpolation),
 //! and calibration (whether the cells holding 95 % of the scan's posterior hold the truth's
 //! cell, at the default `evidence_scale` and at others; the truth cell's rank). Runs only
-//! when `../shared/data/ilc20` exists; the figures are printed (`cargo test -p wipdr-eval
-//! --test likelihood_real -- --nocapture`).
+//! when `ilc20/` is under `$WIPDR_DATA` (else `../shared/data`); the figures are printed
+//! (`cargo test -p wipdr-eval --test likelihood_real -- --nocapture`).
 
 mod common;
 

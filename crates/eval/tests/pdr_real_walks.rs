@@ -1,8 +1,8 @@
 //! Real walks (ILC 2.0 `site2/F3`, 37 walks): under the protocol folds, the calibrated PDR
 //! beats the competition sample code's PDR, scored at the waypoints after each walk's first
-//! Wi-Fi scan. Skipped, with a message, when `../shared/data` is absent.
+//! Wi-Fi scan. Skipped, with a message, when the data root
+//! (`$WIPDR_DATA`, else `../shared/data`) lacks it.
 
-use std::path::PathBuf;
 use wipdr_core::stats::ErrorStats;
 use wipdr_eval::folds::{FOLDS, folds_by_name};
 use wipdr_io::floor::{ReadOptions, read_floor_dir};
@@ -14,14 +14,13 @@ use wipdr_pdr::{Pdr, PdrConfig};
 
 #[test]
 fn calibrated_pdr_beats_sample_code_on_site2_f3() {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20/site2/F3"
-    ));
-    if !dir.is_dir() {
-        eprintln!("skipped: {} not found", dir.display());
-        return;
-    }
+    let dir = match wipdr_io::real_data("ilc20/site2/F3") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
+    };
     let floor = read_floor_dir(&dir, &ReadOptions::default()).expect("floor");
     let ids: Vec<&str> = floor
         .walks

@@ -2,7 +2,7 @@
 //! floor with coverage gaps (ILC site2/F2): the synthesised fingerprints sit only in walkable
 //! gaps, and Wi-Fi alone gets closer to the truth with them than without
 //! (docs/results/propagation.md: site2/F2 wifi 12.77 -> 11.40 m with `best.toml`). Skips with
-//! a reason when `../shared/data` is absent.
+//! a reason when the data root (`$WIPDR_DATA`, else `../shared/data`) lacks the data.
 
 mod common;
 

@@ -1,22 +1,14 @@
 //! A radio map from real ILC 2.0 walks (site1/F1): built from most walks, queried with the
 //! scans of held-out walks, scored at the interpolated waypoint position. Runs only when
-//! `../shared/data/ilc20` exists; uses a subset of walks to stay fast.
+//! `ilc20/site1/F1` is under the data root (`$WIPDR_DATA`, else `../shared/data`); uses a
+//! subset of walks to stay fast.
 
-use std::path::PathBuf;
 use wipdr_core::Walk;
 use wipdr_core::walk::interpolate_waypoints;
 use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fingerprint::{KnnConfig, KnnMatcher, Matcher, Metric, QueryFilter};
 use wipdr_io::floor::walk_files;
 use wipdr_io::trace::read_walk;
-
-fn floor_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20/site1/F1"
-    ));
-    dir.is_dir().then_some(dir)
-}
 
 /// Mean error of WKNN over the held-out walks' scans, and the mean error of always answering
 /// the centroid of the map (the trivial baseline).
@@ -67,9 +59,12 @@ fn score(
 
 #[test]
 fn walk_map_beats_centroid_on_held_out_walks() {
-    let Some(dir) = floor_dir() else {
-        eprintln!("skipped: ../shared/data/ilc20 not found");
-        return;
+    let dir = match wipdr_io::real_data("ilc20/site1/F1") {
+        Ok(dir) => dir,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
     };
     let files = walk_files(&dir).unwrap();
     let walks: Vec<Walk> = files.iter().map(|f| read_walk(f).unwrap().walk).collect();

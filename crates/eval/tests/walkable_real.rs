@@ -1,6 +1,7 @@
 //! Real walks against the floor plans' walkable space: how often the truth lies in walkable
 //! space, inside a unit, or outside the outline (what the walkability likelihood of `pmf` and
-//! map matching may assume). Skips with a reason when `../shared/data` is absent.
+//! map matching may assume). Skips with a reason when the data root (`$WIPDR_DATA`, else
+//! `../shared/data`) lacks the data.
 
 mod common;
 

@@ -673,7 +673,7 @@ fn store(file: &Path, key: &CacheKey, floor: &FloorData) -> std::io::Result<()> 
 /// ```no_run
 /// use wipdr_io::{cache, floor::ReadOptions};
 /// let floor = cache::read_floor_dir_cached(
-///     "../shared/data/ilc20/site1/F1",
+///     wipdr_io::data_root().join("ilc20/site1/F1"),
 ///     cache::DEFAULT_CACHE_DIR,
 ///     &ReadOptions::default(),
 /// ).unwrap();

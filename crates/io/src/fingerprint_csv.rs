@@ -1,8 +1,8 @@
 //! Fingerprint benchmark CSV files: reader and writer.
 //!
-//! The nine public benchmarks in `../shared/data/fingerprint/` (DSI, LIB, TUT, UJI) share one
-//! layout: a header `ap_000,ap_001,…,ap_NNN,x,y,z,floor,building`, then one reference point or
-//! query per line. RSS values are in dBm; the value `100` means "not detected"
+//! The nine public benchmarks in `fingerprint/` under the data root ([`crate::data_root()`];
+//! DSI, LIB, TUT, UJI) share one layout: a header `ap_000,ap_001,…,ap_NNN,x,y,z,floor,building`,
+//! then one reference point or query per line. RSS values are in dBm; the value `100` means "not detected"
 //! ([`NOT_DETECTED`]). `x, y, z` are metres, `floor` and `building` integers.
 //!
 //! The reader is strict: a ragged row, a number that does not parse, a non-finite value, an

@@ -370,7 +370,8 @@ fn split_duplicate_ids(files: &[PathBuf]) -> (Vec<PathBuf>, Vec<(PathBuf, PathBu
 ///
 /// ```no_run
 /// use wipdr_io::floor::{read_floor_dir, ReadOptions};
-/// let floor = read_floor_dir("../shared/data/ilc20/site1/F1", &ReadOptions::default()).unwrap();
+/// let dir = wipdr_io::data_root().join("ilc20/site1/F1");
+/// let floor = read_floor_dir(dir, &ReadOptions::default()).unwrap();
 /// println!("{}: {} walks, {} units", floor.name, floor.walks.len(), floor.plan.units.len());
 /// ```
 pub fn read_floor_dir(dir: impl AsRef<Path>, options: &ReadOptions) -> Result<FloorData, IoError> {

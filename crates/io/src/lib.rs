@@ -39,6 +39,9 @@
 //! - [`cache`]: a bincode cache of parsed floors, keyed by each source file's size and
 //!   modification time (default folder [`cache::DEFAULT_CACHE_DIR`]).
 //!
+//! [`data_root()`] is where the real data sets live (`$WIPDR_DATA`, else `../shared/data`
+//! beside the workspace); [`real_data()`] finds a folder under it or says why it is missing.
+//!
 //! ## Limits
 //!
 //! Every reader is bounded by [`Limits`] (serde, configurable): line length (64 KiB),
@@ -74,6 +77,7 @@
 
 pub mod any;
 pub mod cache;
+pub mod data_root;
 pub mod error;
 pub mod evaal;
 pub mod fingerprint_csv;
@@ -87,6 +91,7 @@ pub mod site;
 pub mod trace;
 
 pub use cache::read_floor_dir_cached;
+pub use data_root::{DATA_ROOT_ENV, MissingData, data_root, real_data};
 pub use error::IoError;
 pub use floor::{FloorData, ReadOptions, SkippedWalk, read_floor_dir};
 pub use geojson::LonLatBox;

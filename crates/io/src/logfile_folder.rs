@@ -69,7 +69,8 @@ pub fn frame_of(points: impl IntoIterator<Item = (f64, f64)>) -> Option<(GeoFram
 ///
 /// ```no_run
 /// use wipdr_io::{logfile_folder::read_logfile_dir, ReadOptions};
-/// let data = read_logfile_dir("../shared/data/ipin2023".as_ref(), &ReadOptions::default()).unwrap();
+/// let dir = wipdr_io::data_root().join("ipin2023");
+/// let data = read_logfile_dir(&dir, &ReadOptions::default()).unwrap();
 /// println!("{} walks, frame {:?}", data.walks.len(), data.geo_frame);
 /// ```
 pub fn read_logfile_dir(dir: &Path, options: &ReadOptions) -> Result<FloorData, IoError> {

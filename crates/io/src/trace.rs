@@ -3,7 +3,8 @@
 //!
 //! One record per line, tab separated: Unix time in ms, record type, values. Lines starting
 //! with `#` are headers made of tab-separated `key:value` pairs (`startTime`, `SiteID`,
-//! `Brand`, ..., `endTime`). See `../shared/data/README.md` for the value columns.
+//! `Brand`, ..., `endTime`). The value columns: the README of the ILC 2.0 repository, or
+//! `README.md` in the data root ([`crate::data_root()`]).
 //!
 //! What the reader does with dirty input:
 //! - every stream is sorted by time (stable), since records are not written in time order;

@@ -1,4 +1,5 @@
-//! Reads the 29 IPIN 2023 logfiles (when `../shared/data/ipin2023` exists) and checks what
+//! Reads the 29 IPIN 2023 logfiles (when `ipin2023/` is under the data
+//! root, `$WIPDR_DATA` else `../shared/data`) and checks what
 //! the reader promises on them: every file parses, with a counted report; the traps of the
 //! data README (the `% POSI` header line, floors 0/-2 whatever the header says, one walk
 //! changing floor, the app clock) are handled.
@@ -8,18 +9,12 @@ use wipdr_io::ReadOptions;
 use wipdr_io::logfile_folder::read_logfile_dir;
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ipin2023"
-    ));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "skipped: IPIN data not found at {} (see ../shared/data/README.md)",
-            dir.display()
-        );
-        None
+    match wipdr_io::real_data("ipin2023") {
+        Ok(dir) => Some(dir),
+        Err(missing) => {
+            println!("skipped: {missing}");
+            None
+        }
     }
 }
 

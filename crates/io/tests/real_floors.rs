@@ -1,4 +1,5 @@
-//! Reads every walk of the five real ILC 2.0 floors (when `../shared/data` exists) and checks
+//! Reads every walk of the five real ILC 2.0 floors (when they are under the data root,
+//! `wipdr_io::data_root()`: `$WIPDR_DATA`, else `../shared/data`) and checks
 //! the reader's promises on them.
 
 use std::path::PathBuf;
@@ -8,18 +9,12 @@ use wipdr_io::trace::SkipKind;
 const FLOORS: [&str; 5] = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"];
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20"
-    ));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "skipped: real data not found at {} (see ../shared/data/README.md)",
-            dir.display()
-        );
-        None
+    match wipdr_io::real_data("ilc20") {
+        Ok(dir) => Some(dir),
+        Err(missing) => {
+            println!("skipped: {missing}");
+            None
+        }
     }
 }
 

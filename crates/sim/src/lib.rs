@@ -1,7 +1,7 @@
 //! # wipdr-sim — synthetic floors and walks with known truth
 //!
-//! The real walks (`../shared/data/ilc20`) have waypoints only every several metres and no
-//! truth for steps, turns or Wi-Fi gross errors. This crate builds a synthetic mall floor and
+//! The real walks (`ilc20/` under the data root, `wipdr_io::data_root()`) have waypoints
+//! only every several metres and no truth for steps, turns or Wi-Fi gross errors. This crate builds a synthetic mall floor and
 //! walks on it whose every step, turn, stop and injected Wi-Fi gross error is known, from a
 //! seed, reproducibly: for the PDR acceptance (step count, step length, turn detection of
 //! papers 000 §2.2, 001 §3.2 eq. 17-18, 002 §4.2, 004 §4.1), for the robust-fusion acceptance

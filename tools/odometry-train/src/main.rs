@@ -30,7 +30,7 @@ fn parse() -> Result<Args> {
     let cmd = it.next().context(USAGE)?;
     let mut a = Args {
         cmd,
-        data: PathBuf::from("/work/shared/data/ilc20"),
+        data: wipdr_io::data_root().join("ilc20"),
         cache: PathBuf::from("/work/odometry-cache"),
         out: None,
         fixture: None,

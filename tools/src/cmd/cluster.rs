@@ -8,8 +8,8 @@
 //! with scikit-learn's `fit`). `--plot FILE.png` draws the clusters on the map.
 //!
 //! ```text
-//! wipdr cluster --dataset ../shared/data/fingerprint/DSI1 --similarity mixdis --damping 0.9
-//! wipdr cluster --csv ../shared/data/fingerprint/TUT3/test.csv --rows 2000 \
+//! wipdr cluster --dataset $WIPDR_DATA/fingerprint/DSI1 --similarity mixdis --damping 0.9
+//! wipdr cluster --csv $WIPDR_DATA/fingerprint/TUT3/test.csv --rows 2000 \
 //!     --similarity signal --preference median --json
 //! ```
 

@@ -2,7 +2,7 @@
 //! runs its smartphone tracks.
 //!
 //! ```text
-//! wipdr fit --data ../shared/data/ipin2023 --out ipin.wipdr
+//! wipdr fit --data $WIPDR_DATA/ipin2023 --out ipin.wipdr
 //! wipdr evaal --server http://127.0.0.1:5000/evaalapi --trial t1 --model ipin.wipdr --scheme pmf
 //! ```
 //!

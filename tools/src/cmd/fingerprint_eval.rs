@@ -2,8 +2,8 @@
 //! (`DIR/train.csv` = radio map, `DIR/test.csv` = queries).
 //!
 //! ```text
-//! wipdr fingerprint-eval --dataset ../shared/data/fingerprint/DSI1 --matcher nn wknn --k 5
-//! wipdr fingerprint-eval --dataset ../shared/data/fingerprint/* --matcher tuned-cv --json out.json
+//! wipdr fingerprint-eval --dataset $WIPDR_DATA/fingerprint/DSI1 --matcher nn wknn --k 5
+//! wipdr fingerprint-eval --dataset $WIPDR_DATA/fingerprint/* --matcher tuned-cv --json out.json
 //! ```
 //!
 //! Matchers (`--matcher`, several allowed): the presets `nn`, `knn`, `wknn` (1/d), `wknn2`

@@ -1,7 +1,7 @@
 //! `wipdr fit`: learn a site once and save it as a site model file.
 //!
 //! ```text
-//! wipdr fit --data ../shared/data/ilc20/site1 --out site1.wipdr
+//! wipdr fit --data $WIPDR_DATA/ilc20/site1 --out site1.wipdr
 //! wipdr locate --model site1.wipdr WALK_FILE --out track.csv
 //! ```
 //!

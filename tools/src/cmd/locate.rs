@@ -3,8 +3,8 @@
 //! IPIN competition's rows.
 //!
 //! ```text
-//! wipdr fit --data ../shared/data/ilc20/site1 --out site1.wipdr
-//! wipdr locate --model site1.wipdr ../shared/data/ilc20/site1/F1/path_data_files/5dd9e7aac5b77e0006b1732b.txt.gz --out track.csv
+//! wipdr fit --data $WIPDR_DATA/ilc20/site1 --out site1.wipdr
+//! wipdr locate --model site1.wipdr $WIPDR_DATA/ilc20/site1/F1/path_data_files/5dd9e7aac5b77e0006b1732b.txt.gz --out track.csv
 //! wipdr locate --model ipin.wipdr LOG1.txt LOG2.txt --scheme ekf --format ipin --out tracks/
 //! wipdr locate --model site1.wipdr my_phone.csv --out my_phone.geojson --format geojson
 //! ```

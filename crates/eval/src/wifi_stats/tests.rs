@@ -257,14 +257,17 @@ fn short_walks_and_spans_are_counted() {
 
 #[test]
 fn real_walk_rates_are_sane() {
-    let floor = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20/site1/F1"
-    );
-    let files = match wipdr_io::floor::walk_files(floor) {
+    let floor = match wipdr_io::real_data("ilc20/site1/F1") {
+        Ok(floor) => floor,
+        Err(missing) => {
+            eprintln!("skipped: {missing}");
+            return;
+        }
+    };
+    let files = match wipdr_io::floor::walk_files(&floor) {
         Ok(f) if !f.is_empty() => f,
         _ => {
-            eprintln!("skipped: no real walks under {floor}");
+            eprintln!("skipped: no real walks under {}", floor.display());
             return;
         }
     };

@@ -1,5 +1,6 @@
 //! Shared by the eval integration tests: the committed synthetic fixture floor, and the real
-//! ILC floors when `../shared/data` exists. Each test binary uses only some of these.
+//! ILC floors when they are under the data root (`$WIPDR_DATA`, else `../shared/data`). Each
+//! test binary uses only some of these.
 #![allow(dead_code)]
 
 use std::path::PathBuf;
@@ -19,7 +20,7 @@ pub fn fixture_floor() -> FloorInput {
     FloorInput::new("fixture", data.into_floor())
 }
 
-/// The five ILC floors of `../shared/data/ilc20`, as the protocol lists them.
+/// The five ILC floors of `ilc20/` under the data root, as the protocol lists them.
 pub const REAL_FLOORS: [&str; 5] = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"];
 
 /// One real floor (`name` under the ILC root), read through the cache, labelled `name`.
@@ -32,26 +33,20 @@ pub fn real_floor(root: &std::path::Path, cache: &std::path::Path, name: &str) -
 
 /// The ILC floors' root and the read cache, or `None` (the reason printed) without the data.
 pub fn real_data() -> Option<(PathBuf, PathBuf)> {
-    let root = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/ilc20"
-    ));
-    if !root.is_dir() {
-        println!("skipped: {} not found", root.display());
-        return None;
-    }
+    let root = shared_data_dir("ilc20")?;
     let cache = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../"))
         .join(wipdr_io::cache::DEFAULT_CACHE_DIR);
     Some((root, cache))
 }
 
-/// A folder under `../shared/data` (e.g. `ipin2023/scoring`), or `None` (the reason printed)
-/// without it.
+/// A folder under the data root (`wipdr_io::data_root()`: `$WIPDR_DATA`, else
+/// `../shared/data`; e.g. `ipin2023/scoring`), or `None` (the reason printed) without it.
 pub fn shared_data_dir(sub: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(sub);
-    if !dir.is_dir() {
-        println!("skipped: {} not found", dir.display());
-        return None;
+    match wipdr_io::real_data(sub) {
+        Ok(dir) => Some(dir),
+        Err(missing) => {
+            println!("skipped: {missing}");
+            None
+        }
     }
-    Some(dir)
 }

@@ -120,7 +120,7 @@ struct WalkOut {
 /// that the errors compare with the `wifi` rows of `wipdr eval`. On `ilc20/site1` (208
 /// walks, two cores shared with other builds) one map per walk ran for over 10 minutes
 /// before it was stopped; 10 groups took 77 s, 5 groups 64 s, beside a fit of 10 to 24 s
-/// (`wipdr fit --data ../shared/data/ilc20/site1 --out s1.wipdr [--leave-out-groups 10]`
+/// (`wipdr fit --data $WIPDR_DATA/ilc20/site1 --out s1.wipdr [--leave-out-groups 10]`
 /// prints both).
 pub const DEFAULT_LEAVE_OUT_GROUPS: usize = 5;
 
