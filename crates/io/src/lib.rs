@@ -3,7 +3,7 @@
 //! Brings the recorded inputs of every paper's evaluation into the [`wipdr_core`] vocabulary:
 //! the Indoor Location Competition 2.0 walks (smartphone IMU, Wi-Fi scans and surveyed
 //! waypoints; the real-data setting of papers 000 §4, 001 §4, 002 §5 and 004 §5, see
-//! `../shared/docs/evaluation.md`), their floor plans, the IPIN competition's logfiles (the
+//! `docs/evaluation.md`), their floor plans, the IPIN competition's logfiles (the
 //! field's second benchmark, with floors and a barometer), and the public fingerprint
 //! benchmarks.
 //! It also writes walks and plans in the same formats, so synthetic floors (crate `wipdr-sim`)
