@@ -13,6 +13,7 @@ def test_evaluate_equals_cli_json_on_the_fixtures(wipdr_bin, tmp_path):
     py = wipdr.evaluate([str(FIXTURE_FLOOR)], SCHEMES)
     assert py.keys() == {
         "pooled", "floors", "walks", "schemes", "mode", "config", "skips", "skipped_runs", "motion",
+        "scan_likelihood",
     }
     assert py["mode"] == "causal"
     assert py["schemes"] == SCHEMES

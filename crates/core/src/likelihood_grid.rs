@@ -42,11 +42,7 @@ impl WifiLikelihood {
     /// the mean of the known cells within `reach_m` (a square of that half-width; 0: none,
     /// every such cell reads [`WifiLikelihood::unknown`]). `None` when no cell has a finite
     /// value or the lengths differ. Costs two passes over the raster.
-    pub fn from_log(
-        grid: GridSpec,
-        log_likelihood: &[Option<f64>],
-        reach_m: f64,
-    ) -> Option<Self> {
+    pub fn from_log(grid: GridSpec, log_likelihood: &[Option<f64>], reach_m: f64) -> Option<Self> {
         if log_likelihood.len() != grid.len() {
             return None;
         }
@@ -113,6 +109,39 @@ impl WifiLikelihood {
     fn cell_value(&self, i: usize) -> f64 {
         let v = self.relative[i];
         if v >= 0.0 { f64::from(v) } else { self.unknown }
+    }
+
+    /// Where `p` falls in the likelihood: the number of raster cells more likely than `p`'s
+    /// value (its rank, 0 for the best), and whether the smallest set of most likely cells
+    /// holding `mass` of the raster's total holds `p` (its value is at least the least value
+    /// in that set). The calibration of a scan's likelihood against the truth.
+    ///
+    /// ```
+    /// use wipdr_core::{GridSpec, Point2, WifiLikelihood};
+    /// let grid = GridSpec::new(Point2::new(0.0, 0.0), 1.0, 4, 1, 100).unwrap();
+    /// let ln = |v: f64| Some(v.ln());
+    /// let l = WifiLikelihood::from_log(grid, &[ln(1.0), ln(0.5), ln(0.3), ln(0.2)], 0.0).unwrap();
+    /// assert_eq!(l.rank_and_region(Point2::new(1.5, 0.5), 0.6), (1, true)); // 1 + 0.5 >= 0.6 x 2
+    /// assert_eq!(l.rank_and_region(Point2::new(2.5, 0.5), 0.6), (2, false));
+    /// ```
+    pub fn rank_and_region(&self, p: Point2, mass: f64) -> (usize, bool) {
+        let v = self.at(p);
+        let values: Vec<f64> = (0..self.relative.len())
+            .map(|i| self.cell_value(i))
+            .collect();
+        let rank = values.iter().filter(|&&q| q > v).count();
+        let total: f64 = values.iter().sum();
+        let mut sorted = values;
+        sorted.sort_by(|a, b| b.total_cmp(a));
+        let (mut acc, mut least) = (0.0, 0.0);
+        for q in sorted {
+            acc += q;
+            least = q;
+            if acc >= mass * total {
+                break;
+            }
+        }
+        (rank, v >= least)
     }
 
     /// Bytes held (the raster's values).

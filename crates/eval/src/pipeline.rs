@@ -13,11 +13,12 @@
 use crate::coverage::attach_coverage;
 use crate::fold::FoldModel;
 use crate::folds::FOLDS;
-use crate::report::{EvalReport, SkippedRun, WalkMotion, WalkResult};
+use crate::report::{EvalReport, SkippedRun, WalkMotion, WalkResult, WalkScanLikelihood};
 use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
 use std::sync::Arc;
 use thiserror::Error;
+use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::TrailRaster;
@@ -618,7 +619,36 @@ pub fn run_prepared_observed(
         walks,
     )
     .with_skips(skipped_runs, input_skips)
-    .with_motion(motion))
+    .with_motion(motion)
+    .with_scan_likelihood(scan_likelihood(prepared, cfg)))
+}
+
+/// Where the truth falls in each scored scan's likelihood, per prepared walk whose fixes
+/// carry one: the scans from the scoring start on, the truth the waypoints interpolated at
+/// the scan's time (scans outside the waypoints' span are left out).
+fn scan_likelihood(prepared: &[PreparedWalk], cfg: &EvalConfig) -> Vec<WalkScanLikelihood> {
+    prepared
+        .iter()
+        .filter_map(|pw| {
+            let from = pw.first_scan_t.filter(|_| cfg.score_from_first_scan);
+            let scans: Vec<(usize, bool)> = pw
+                .observations
+                .iter()
+                .filter(|o| from.is_none_or(|t| o.t >= t))
+                .filter_map(|o| {
+                    let l = o.likelihood.as_ref()?;
+                    let truth = interpolate_waypoints(&pw.waypoints, o.t)?;
+                    Some(l.rank_and_region(truth, 0.95))
+                })
+                .collect();
+            (!scans.is_empty()).then(|| WalkScanLikelihood {
+                floor: pw.floor.clone(),
+                walk: pw.walk.clone(),
+                fold: pw.fold,
+                scans,
+            })
+        })
+        .collect()
 }
 
 /// The motion source's error between consecutive waypoints: for each pair `(a, b)` with

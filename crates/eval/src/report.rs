@@ -186,6 +186,55 @@ pub struct WalkMotion {
     pub segments: Vec<(f64, f64)>,
 }
 
+/// Where the truth falls in each scored scan's likelihood over the floor
+/// ([`wipdr_core::WifiLikelihood::rank_and_region`]) for one test walk: scheme-independent,
+/// one per walk whose fixes carry a likelihood.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct WalkScanLikelihood {
+    /// Floor label.
+    pub floor: String,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold of the walk.
+    pub fold: usize,
+    /// Per scan with a likelihood and a truth (the waypoints interpolated at its time): the
+    /// number of raster cells more likely than the truth's, and whether the most likely cells
+    /// holding 95 % of the likelihood hold it.
+    pub scans: Vec<(usize, bool)>,
+}
+
+/// The scans' likelihood calibration summarised (a floor or pooled).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct ScanLikelihoodSummary {
+    /// Scans scored.
+    pub scans: usize,
+    /// Share of them whose 95 % likelihood region holds the truth (the band the filters
+    /// need: 0.90-0.97).
+    pub region_95_holds: f64,
+    /// Median rank of the truth's cell (cells more likely than it).
+    pub rank_median: f64,
+    /// 90th percentile of that rank.
+    pub rank_p90: f64,
+}
+
+impl ScanLikelihoodSummary {
+    /// The summary of `(rank, held)` scans.
+    pub fn of<'a>(scans: impl IntoIterator<Item = &'a (usize, bool)>) -> Self {
+        let scans: Vec<(usize, bool)> = scans.into_iter().copied().collect();
+        if scans.is_empty() {
+            return Self::default();
+        }
+        let ranks: Vec<f64> = scans.iter().map(|&(r, _)| r as f64).collect();
+        let stats = ErrorStats::from_errors(&ranks);
+        Self {
+            scans: scans.len(),
+            region_95_holds: scans.iter().filter(|s| s.1).count() as f64 / scans.len() as f64,
+            rank_median: stats.p50,
+            rank_p90: stats.p90,
+        }
+    }
+}
+
 /// Per-segment displacement errors summarised (a floor or pooled).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct MotionSummary {
@@ -244,6 +293,10 @@ pub struct EvalReport {
     /// ([`WalkMotion`]), in the walks' order.
     #[serde(default)]
     pub motion: Vec<WalkMotion>,
+    /// Where the truth falls in each scored scan's likelihood, per test walk
+    /// ([`WalkScanLikelihood`]; empty when the fixes carry none), in the walks' order.
+    #[serde(default)]
+    pub scan_likelihood: Vec<WalkScanLikelihood>,
 }
 
 impl EvalReport {
@@ -281,7 +334,68 @@ impl EvalReport {
             skipped_runs: Vec::new(),
             input_skips: BTreeMap::new(),
             motion: Vec::new(),
+            scan_likelihood: Vec::new(),
         }
+    }
+
+    /// The report with its walks' scan likelihood calibration.
+    pub fn with_scan_likelihood(mut self, scans: Vec<WalkScanLikelihood>) -> Self {
+        self.scan_likelihood = scans;
+        self
+    }
+
+    /// The scan likelihood's calibration per floor (in floor order) and pooled (last,
+    /// labelled `pooled`).
+    pub fn scan_likelihood_summaries(&self) -> Vec<(String, ScanLikelihoodSummary)> {
+        let mut out: Vec<(String, ScanLikelihoodSummary)> = self
+            .floor_order
+            .iter()
+            .map(|f| {
+                let scans = self
+                    .scan_likelihood
+                    .iter()
+                    .filter(|m| &m.floor == f)
+                    .flat_map(|m| &m.scans);
+                (f.clone(), ScanLikelihoodSummary::of(scans))
+            })
+            .collect();
+        out.push((
+            "pooled".into(),
+            ScanLikelihoodSummary::of(self.scan_likelihood.iter().flat_map(|m| &m.scans)),
+        ));
+        out
+    }
+
+    /// The scan likelihood's calibration as text, a row per floor and one pooled. Empty
+    /// without scored scans.
+    pub fn scan_likelihood_table(&self) -> String {
+        use std::fmt::Write;
+        let rows = self.scan_likelihood_summaries();
+        let mut out = String::new();
+        if rows.last().is_none_or(|(_, s)| s.scans == 0) {
+            return out;
+        }
+        let _ = writeln!(
+            out,
+            "scan likelihood: where the truth falls (its 95 % region; the cells more likely than it)"
+        );
+        let _ = writeln!(
+            out,
+            "  {:<28} {:>8} {:>10} {:>12} {:>10}",
+            "floor", "scans", "95% holds", "rank median", "rank p90"
+        );
+        for (floor, m) in &rows {
+            let _ = writeln!(
+                out,
+                "  {:<28} {:>8} {:>9.1}% {:>12.0} {:>10.0}",
+                floor,
+                m.scans,
+                100.0 * m.region_95_holds,
+                m.rank_median,
+                m.rank_p90
+            );
+        }
+        out
     }
 
     /// The report with the motion source's per-segment errors of its walks.
@@ -426,6 +540,11 @@ impl EvalReport {
                 "source": config.get("odometry").cloned().unwrap_or(serde_json::Value::Null),
                 "summaries": self.motion_summaries().into_iter().collect::<BTreeMap<_, _>>(),
             },
+            "scan_likelihood": self
+                .scan_likelihood_summaries()
+                .into_iter()
+                .filter(|(_, s)| s.scans > 0)
+                .collect::<BTreeMap<_, _>>(),
             "skips": self.skips(),
             "skipped_runs": self.skipped_runs,
             "mode": if config.get("offline").and_then(serde_json::Value::as_bool) == Some(true) {

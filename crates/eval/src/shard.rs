@@ -217,6 +217,9 @@ pub struct ShardReport {
     /// Its walks' motion-source segment errors.
     #[serde(default)]
     pub motion: Vec<crate::report::WalkMotion>,
+    /// Its walks' scan likelihood calibration.
+    #[serde(default)]
+    pub scan_likelihood: Vec<crate::report::WalkScanLikelihood>,
 }
 
 impl ShardReport {
@@ -230,6 +233,7 @@ impl ShardReport {
             skipped_runs: report.skipped_runs,
             input_skips: report.input_skips,
             motion: report.motion,
+            scan_likelihood: report.scan_likelihood,
         }
     }
 
@@ -397,6 +401,10 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
         .iter()
         .flat_map(|r| r.motion.iter().cloned())
         .collect();
+    let mut scan_likelihood: Vec<crate::report::WalkScanLikelihood> = reports
+        .iter()
+        .flat_map(|r| r.scan_likelihood.iter().cloned())
+        .collect();
     let mut walks: Vec<WalkResult> = reports.into_iter().flat_map(|r| r.walks).collect();
     // The unsharded order: walks by (floor, walk id) as `pipeline::prepare` sorts them
     // (ties by fold), each walk's schemes in the order asked for.
@@ -420,10 +428,12 @@ pub fn merge(parts: &[PathBuf]) -> Result<Merged, ShardError> {
     });
     // The unsharded order of the motion rows: the prepared walks' (floor, walk, fold).
     motion.sort_by_cached_key(|m| (position(&labels, &m.floor), m.walk.clone(), m.fold));
+    scan_likelihood.sort_by_cached_key(|m| (position(&labels, &m.floor), m.walk.clone(), m.fold));
     Ok(Merged {
         report: EvalReport::from_walks(schemes, labels, walks)
             .with_skips(skipped_runs, input_skips)
-            .with_motion(motion),
+            .with_motion(motion)
+            .with_scan_likelihood(scan_likelihood),
         config,
         count,
     })

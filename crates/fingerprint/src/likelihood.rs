@@ -403,7 +403,11 @@ impl ScanLikelihood {
             _ => floor,
         };
         let raster = self.raster(floor, scan, offset_db)?;
-        WifiLikelihood::from_log(raster.grid, &raster.log_likelihood, self.config.unknown_reach_m)
+        WifiLikelihood::from_log(
+            raster.grid,
+            &raster.log_likelihood,
+            self.config.unknown_reach_m,
+        )
     }
 
     /// The log-likelihood of `scan` at `p` on `floor`: its cell's value in

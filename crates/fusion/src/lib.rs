@@ -314,9 +314,13 @@ impl SchemeConfig {
 
     /// Whether the scheme weighs positions by a scan's likelihood over the floor
     /// ([`wipdr_core::WifiObservation::likelihood`]), so that the front end should compute
-    /// it: `pmf` with `wifi_likelihood`.
+    /// it: `pmf`, `pf` and `apf` with `wifi_likelihood`.
     pub fn uses_wifi_likelihood(&self) -> bool {
-        matches!(self, Self::Pmf(c) if c.wifi_likelihood)
+        match self {
+            Self::Pmf(c) => c.wifi_likelihood,
+            Self::Pf(c) | Self::Apf(c) => c.wifi_likelihood,
+            _ => false,
+        }
     }
 
     /// The scheme's name.

@@ -108,6 +108,14 @@ pub struct PfConfig {
     /// share of the learned Wi-Fi variance (the cloud alone assumes independent fixes and
     /// held the truth at 46 % of the IPIN points; wipdr's own, the same in both presets).
     pub radius: RadiusConfig,
+    /// Weigh particles by the scan's likelihood over the floor as well
+    /// ([`wipdr_core::WifiLikelihood`], when the fix carries one): a particle's Wi-Fi weight
+    /// is `(1 - likelihood_share) g + likelihood_share l`, `g` the Gaussian about the fix
+    /// (eq. 17), `l` the scan's likelihood at the particle relative to its best cell.
+    /// wipdr's own (not in paper 004); off by default.
+    pub wifi_likelihood: bool,
+    /// The likelihood's share of the Wi-Fi weight with `wifi_likelihood`, in `[0, 1]`.
+    pub likelihood_share: f64,
 }
 
 /// The shipped default differs from the untuned preset in `position_sd_m` and `wifi_sd_m`
@@ -149,6 +157,8 @@ impl PfConfig {
             reseed_gate_sd: 3.0,
             reseed_consistency_m: 10.0,
             radius: RadiusConfig::default(),
+            wifi_likelihood: false,
+            likelihood_share: 0.5,
         }
     }
 }
@@ -160,6 +170,12 @@ pub const MAX_PARTICLES: usize = 1_000_000;
 impl PfConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), FusionError> {
+        if !(self.likelihood_share.is_finite() && (0.0..=1.0).contains(&self.likelihood_share)) {
+            return Err(FusionError::InvalidConfig {
+                field: "likelihood_share",
+                reason: format!("must be in [0, 1], got {}", self.likelihood_share),
+            });
+        }
         if self.n_particles == 0 || self.n_particles > MAX_PARTICLES {
             return Err(FusionError::InvalidConfig {
                 field: "n_particles",
@@ -547,6 +563,11 @@ impl Fuser for ParticleFilter {
                 self.cfg.adaptive_softness_m,
             )
         });
+        let likelihood = obs
+            .likelihood
+            .clone()
+            .filter(|_| self.cfg.wifi_likelihood && self.cfg.likelihood_share > 0.0);
+        let (share, keep) = (self.cfg.likelihood_share, 1.0 - self.cfg.likelihood_share);
         let mut log_w: Vec<f64> = self
             .particles
             .iter()
@@ -555,7 +576,12 @@ impl Fuser for ParticleFilter {
                 if w.is_nan() || *w <= 0.0 {
                     return f64::NEG_INFINITY;
                 }
-                let mut l = w.ln() - (p.position - z).norm_squared() * inv_2r;
+                let r2 = (p.position - z).norm_squared() * inv_2r;
+                let mut l = match &likelihood {
+                    // ln((1 - s) g + s l): 0 when both vanish, which the max below skips.
+                    Some(lik) => w.ln() + (keep * (-r2).exp() + share * lik.at(p.position)).ln(),
+                    None => w.ln() - r2,
+                };
                 if let Some((r, s)) = adaptive {
                     let dist = (p.position - p.anchor).norm(); // eq. 18
                     l += log_logistic_decreasing((dist - r) / s); // eq. 19 (decreasing form)

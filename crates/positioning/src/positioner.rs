@@ -7,12 +7,12 @@ use crate::sample::{PressureSample, Sample};
 use crate::{
     FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site,
 };
+use std::sync::Arc;
 use wipdr_core::MotionState;
 use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
 };
-use std::sync::Arc;
 use wipdr_fingerprint::likelihood::ScanLikelihood;
 use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
 use wipdr_fusion::replay::{FusionInput, merged};

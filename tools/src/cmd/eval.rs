@@ -253,6 +253,10 @@ fn evaluate_items(
     if !motion.is_empty() {
         print!("\n{motion}");
     }
+    let scans = report.scan_likelihood_table();
+    if !scans.is_empty() {
+        print!("\n{scans}");
+    }
     let skips = report.skips_table();
     if !skips.is_empty() {
         print!("\n{skips}");
@@ -314,6 +318,10 @@ fn run_merge(parts: &[PathBuf], json: &Path) -> Result<()> {
     let motion = merged.report.motion_table(source.unwrap_or("steps"));
     if !motion.is_empty() {
         print!("\n{motion}");
+    }
+    let scans = merged.report.scan_likelihood_table();
+    if !scans.is_empty() {
+        print!("\n{scans}");
     }
     let skips = merged.report.skips_table();
     if !skips.is_empty() {

@@ -258,7 +258,10 @@ impl PointMassFilter {
             1.0
         };
         self.walked_since_fix = 0.0;
-        let likelihood = obs.likelihood.clone().filter(|_| self.cfg.wifi_likelihood);
+        let likelihood = obs
+            .likelihood
+            .clone()
+            .filter(|_| self.cfg.wifi_likelihood && self.cfg.likelihood_share > 0.0);
         let share = if likelihood.is_some() {
             self.cfg.likelihood_share
         } else {

@@ -807,3 +807,89 @@ fn a_displacement_with_covariance_blurs_by_its_variance() {
     // the largest usable covariance: at most MAX_EVENT_BLURS passes
     assert_eq!(run(Some([1e6, 0.0, 1e6])), 64);
 }
+
+/// A scan likelihood over an 80 m x 30 m raster (2 m cells) with a Gaussian bump of 3 m at
+/// each of `peaks` (log-likelihood `-d² / 2 sd²` to the nearest peak).
+fn bumps(peaks: &[(f64, f64)]) -> Arc<wipdr_core::WifiLikelihood> {
+    let grid = GridSpec::new(Point2::origin(), 2.0, 40, 15, 10_000).unwrap();
+    let values: Vec<Option<f64>> = (0..grid.len())
+        .map(|i| {
+            let c = grid.centre_of_index(i);
+            let d2 = peaks
+                .iter()
+                .map(|&(x, y)| (c - Point2::new(x, y)).norm_squared())
+                .fold(f64::INFINITY, f64::min);
+            Some(-d2 / (2.0 * 9.0))
+        })
+        .collect();
+    Arc::new(wipdr_core::WifiLikelihood::from_log(grid, &values, 0.0).unwrap())
+}
+
+/// A scan that fits two places keeps both: the matcher's point picks the wrong one at each
+/// scan, the walk then moves 7 m north, and only the truth's place fits both scans. With
+/// the likelihood alone `pmf` ends there; with the Gaussian about the (wrong) points it
+/// does not; with `wifi_likelihood` off the likelihood a fix carries is ignored.
+#[test]
+fn a_scan_that_fits_two_places_keeps_both_until_the_walk_chooses() {
+    let run = |cfg: PointMassConfig| {
+        let mut f = PointMassFilter::new(cfg, None, None, None).unwrap();
+        // The truth starts at (40, 10); the scan fits (10, 10) as well, and the point is there.
+        let mut first = fix(0, 10.0, 10.0);
+        first.likelihood = Some(bumps(&[(10.0, 10.0), (40.0, 10.0)]));
+        f.on_wifi(&first);
+        for k in 1..=10 {
+            f.on_step(&step(500 * k, 0.0));
+        }
+        // At (40, 17) the scan fits (70, 17) too, and the point is there.
+        let mut second = fix(6000, 70.0, 17.0);
+        second.likelihood = Some(bumps(&[(40.0, 17.0), (70.0, 17.0)]));
+        f.on_wifi(&second);
+        f.estimate().unwrap().position
+    };
+    let likelihood = PointMassConfig {
+        wifi_likelihood: true,
+        likelihood_share: 1.0,
+        ..PointMassConfig::default()
+    };
+    let p = run(likelihood.clone());
+    assert!((p - Point2::new(40.0, 17.0)).norm() < 3.0, "{p:?}");
+    let gaussian = run(PointMassConfig::default());
+    assert!(
+        (gaussian - Point2::new(40.0, 17.0)).norm() > 10.0,
+        "{gaussian:?}"
+    );
+    // The shipped mixture keeps the truth too; off, the likelihood is not read.
+    let mixed = run(PointMassConfig {
+        likelihood_share: 0.5,
+        ..likelihood
+    });
+    assert!((mixed - Point2::new(40.0, 17.0)).norm() < 3.0, "{mixed:?}");
+    let off = run(PointMassConfig {
+        wifi_likelihood: false,
+        ..PointMassConfig::default()
+    });
+    assert_eq!(off, gaussian);
+}
+
+/// With `likelihood_share` 0 the likelihood a fix carries changes nothing (the same bits as
+/// without it).
+#[test]
+fn a_zero_likelihood_share_gives_the_gaussian_bit_for_bit() {
+    let cfg = PointMassConfig {
+        wifi_likelihood: true,
+        likelihood_share: 0.0,
+        ..PointMassConfig::default()
+    };
+    let mut with = PointMassFilter::new(cfg.clone(), None, None, None).unwrap();
+    let mut without = PointMassFilter::new(cfg, None, None, None).unwrap();
+    let mut carrying = fix(0, 10.0, 10.0);
+    carrying.likelihood = Some(bumps(&[(30.0, 10.0)]));
+    with.on_wifi(&carrying);
+    without.on_wifi(&fix(0, 10.0, 10.0));
+    for k in 1..=6 {
+        with.on_step(&step(500 * k, 0.5));
+        without.on_step(&step(500 * k, 0.5));
+    }
+    assert_eq!(with.prob, without.prob);
+    assert_eq!(with.estimate(), without.estimate());
+}
