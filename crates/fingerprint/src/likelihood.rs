@@ -105,6 +105,15 @@ pub struct LikelihoodConfig {
     /// a scan taken in a coverage gap resembles those of the covered places around it.
     /// 0: every unknown place reads the scan's mean over the floor.
     pub unknown_reach_m: f64,
+    /// Learn each walk's device RSS offset from its scans' residuals at the matcher's fixes
+    /// ([`RssOffsetEstimate`], at most ±20 dB) and score its scans with it; off: offset 0.
+    pub estimate_offset: bool,
+    /// The offset estimate's shrinkage: this many scans of residual 0 count in its mean
+    /// (at least 1). 12: between the IPIN logfiles (whose phones differ from the survey's;
+    /// `pmf` EvAAL 9.05 at 4, 9.19 at 12, 9.27 at 30, 9.67 without the estimate) and the
+    /// ILC floors (one kind of phone; causal 4.82 at 4, 4.77 at 12, 4.75 at 30, 4.73
+    /// without), `wipdr eval` with `[likelihood] offset_prior_scans = N` on both.
+    pub offset_prior_scans: f64,
     /// A floor's raster may hold at most this many cells.
     pub max_cells: usize,
     /// All floors' AP fields together may hold at most this many (cell, AP) entries (16
@@ -126,6 +135,8 @@ impl Default for LikelihoodConfig {
             max_entry_age_ms: Some(5_000),
             evidence_scale: 0.1,
             unknown_reach_m: 15.0,
+            estimate_offset: true,
+            offset_prior_scans: 12.0,
             max_cells: 4_000_000,
             max_field_cells: 50_000_000,
         }
@@ -173,6 +184,9 @@ impl LikelihoodConfig {
         }
         if !(self.unknown_reach_m.is_finite() && self.unknown_reach_m >= 0.0) {
             return bad("unknown_reach_m", "a finite number >= 0");
+        }
+        if !(self.offset_prior_scans.is_finite() && self.offset_prior_scans >= 1.0) {
+            return bad("offset_prior_scans", "a finite number >= 1");
         }
         if self.max_scan_aps == 0 {
             return bad("max_scan_aps", "at least 1");
@@ -276,9 +290,61 @@ impl LikelihoodRaster {
     }
 }
 
+/// A walk's device RSS offset, learned online from its scans' residuals at their fixes
+/// ([`ScanLikelihood::rss_residual`]): their sum shrunk towards 0 by `prior_scans` scans of
+/// residual 0 (one scan does not move it far), clamped to `±max_db`. A phone reading 6 dB
+/// lower than the survey phones gets an offset near -6 dB after a few scans; the likelihood
+/// then compares its readings with the fields 6 dB higher.
+///
+/// ```
+/// use wipdr_fingerprint::likelihood::RssOffsetEstimate;
+/// let mut e = RssOffsetEstimate::new(4.0, 20.0);
+/// for _ in 0..36 {
+///     e.observe(-6.0);
+/// }
+/// assert!((e.offset_db() + 5.4).abs() < 1e-9); // 36 x -6 / (36 + 4)
+/// e.observe(f64::NAN); // refused
+/// assert!((e.offset_db() + 5.4).abs() < 1e-9);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RssOffsetEstimate {
+    sum: f64,
+    scans: f64,
+    prior_scans: f64,
+    max_db: f64,
+}
+
+impl RssOffsetEstimate {
+    /// An estimate at 0 dB, shrunk by `prior_scans` (at least 1) and clamped to `±max_db`.
+    pub fn new(prior_scans: f64, max_db: f64) -> Self {
+        let ok = |v: f64, least: f64| if v.is_finite() { v.max(least) } else { least };
+        Self {
+            sum: 0.0,
+            scans: 0.0,
+            prior_scans: ok(prior_scans, 1.0),
+            max_db: ok(max_db, 0.0),
+        }
+    }
+
+    /// Adds one scan's residual, dB (a non-finite one is ignored).
+    pub fn observe(&mut self, residual_db: f64) {
+        if residual_db.is_finite() {
+            self.sum += residual_db;
+            self.scans += 1.0;
+        }
+    }
+
+    /// The current offset, dB.
+    pub fn offset_db(&self) -> f64 {
+        (self.sum / (self.scans + self.prior_scans)).clamp(-self.max_db, self.max_db)
+    }
+}
+
 /// Per-AP accumulators of one cell while fitting.
 #[derive(Debug, Clone, Copy, Default)]
 struct Acc {
+    /// Whether the cell is in the current AP's list of touched cells.
+    touched: bool,
     heard_weight: f64,
     mean_sum: f64,
     square_sum: f64,
@@ -408,6 +474,34 @@ impl ScanLikelihood {
             &raster.log_likelihood,
             self.config.unknown_reach_m,
         )
+    }
+
+    /// The device's RSS offset as one scan at `p` on `floor` shows it: the median of the
+    /// scan's scored readings minus the field's mean RSS at `p`'s cell, over the APs whose
+    /// field holds that cell; `None` with fewer than three such APs, off the raster or for
+    /// a floor without fields. What [`RssOffsetEstimate`] averages over a walk.
+    pub fn rss_residual(&self, floor: Option<i32>, p: Point2, scan: &WifiScan) -> Option<f64> {
+        let floor = match (floor, self.floors.as_slice()) {
+            (None, [only]) => only.floor,
+            _ => floor,
+        };
+        let f = self.floors.iter().find(|f| f.floor == floor)?;
+        let cell = u32::try_from(f.grid.index_of(p)?).ok()?;
+        let (aps, _) = self.scan_aps(scan);
+        let mut residuals: Vec<f64> = aps
+            .iter()
+            .filter_map(|(column, rss)| {
+                let cells = f.fields.get(column)?;
+                let j = cells.binary_search_by_key(&cell, |c| c.cell).ok()?;
+                Some(rss - f64::from(cells[j].mean_dbm))
+            })
+            .filter(|r| r.is_finite())
+            .collect();
+        if residuals.len() < 3 {
+            return None;
+        }
+        residuals.sort_by(f64::total_cmp);
+        Some(wipdr_core::stats::percentile_sorted(&residuals, 50.0))
     }
 
     /// The log-likelihood of `scan` at `p` on `floor`: its cell's value in
@@ -549,25 +643,25 @@ fn fit_floor(
         }
         out
     };
+    // Each point's cells in reach, and per AP the points that heard it (in point order, so
+    // that every cell's sums add the points in the same order whatever the AP).
     let mut coverage = vec![0.0f64; n];
-    let mut by_ap: HashMap<u32, HashMap<u32, Acc>> = HashMap::new();
-    for &i in points {
+    let mut reach_of: Vec<Vec<(usize, f64)>> = Vec::with_capacity(points.len());
+    let mut heard_by: std::collections::BTreeMap<u32, Vec<(usize, f64, f64)>> =
+        std::collections::BTreeMap::new();
+    for (k, &i) in points.iter().enumerate() {
         let cells = weights_of(i);
         for &(c, w) in &cells {
             coverage[c] += w;
         }
+        reach_of.push(cells);
         for (j, mean) in map.heard(i) {
             let Ok(ap) = u32::try_from(j) else { continue };
             let spread = f64::from(map.spread(i, j));
-            let m = f64::from(mean);
-            let field = by_ap.entry(ap).or_default();
-            for &(c, w) in &cells {
-                let Ok(cell) = u32::try_from(c) else { continue };
-                let a = field.entry(cell).or_default();
-                a.heard_weight += w;
-                a.mean_sum += w * m;
-                a.square_sum += w * (m * m + spread * spread);
-            }
+            heard_by
+                .entry(ap)
+                .or_default()
+                .push((k, f64::from(mean), spread));
         }
     }
     let (prior_w, prior) = (config.prior_weight, config.detection_prior);
@@ -588,8 +682,33 @@ fn fit_floor(
         .map(|&w| if w > 0.0 { 0.0 } else { f32::NAN })
         .collect();
     let min_var = config.min_sd_db * config.min_sd_db;
-    let mut fields = HashMap::with_capacity(by_ap.len());
-    for (ap, cells) in by_ap {
+    let mut fields = HashMap::with_capacity(heard_by.len());
+    // One AP at a time into a dense scratch over the floor's cells (no hashing per cell);
+    // the APs in column order, so that each cell's silence sums them in a fixed order.
+    let mut scratch = vec![Acc::default(); n];
+    let mut touched: Vec<usize> = Vec::new();
+    for (ap, heard) in heard_by {
+        touched.clear();
+        for &(k, m, spread) in &heard {
+            for &(c, w) in &reach_of[k] {
+                let a = &mut scratch[c];
+                if !a.touched {
+                    a.touched = true;
+                    touched.push(c);
+                }
+                a.heard_weight += w;
+                a.mean_sum += w * m;
+                a.square_sum += w * (m * m + spread * spread);
+            }
+        }
+        touched.sort_unstable();
+        let cells: Vec<(u32, Acc)> = touched
+            .iter()
+            .filter_map(|&c| {
+                let a = std::mem::take(&mut scratch[c]);
+                Some((u32::try_from(c).ok()?, a))
+            })
+            .collect();
         *field_cells += cells.len();
         if *field_cells > config.max_field_cells {
             return Err(FingerprintError::limit_exceeded(

@@ -13,13 +13,17 @@ use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
     WifiScan, angle,
 };
-use wipdr_fingerprint::likelihood::ScanLikelihood;
+use wipdr_fingerprint::likelihood::{RssOffsetEstimate, ScanLikelihood};
 use wipdr_fingerprint::{MatcherModel, OnlineMatcher, ScanContext};
 use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
 use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
 use wipdr_pdr::odometry::{self, LearnedOdometry, OdometryStream};
 use wipdr_pdr::{Pdr, PdrConfig};
+
+/// The largest device RSS offset the likelihood's online estimate may reach, dB (phones
+/// differ from one another by up to about 10-15 dB).
+const MAX_RSS_OFFSET_DB: f64 = 20.0;
 
 /// What the front end made of one sample.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,6 +75,10 @@ pub struct Frontend {
     /// The scan likelihood each fix carries ([`Frontend::with_likelihood`]); `None`: fixes
     /// are points only.
     likelihood: Option<Arc<ScanLikelihood>>,
+    /// The stream's device RSS offset for the likelihood (`likelihood.estimate_offset`).
+    rss_offset: RssOffsetEstimate,
+    /// The offset the latest fix's likelihood was made with, dB.
+    rss_offset_db: f64,
 }
 
 /// The learned motion source of a stream: the streaming network and what turns its outputs
@@ -170,6 +178,8 @@ impl Frontend {
             counts: StreamCounts::default(),
             learned: None,
             likelihood: None,
+            rss_offset: RssOffsetEstimate::new(1.0, 20.0),
+            rss_offset_db: 0.0,
         }
     }
 
@@ -178,6 +188,10 @@ impl Frontend {
     /// What `pmf` with `wifi_likelihood` weighs cells by; its cost, a pass over the floor's
     /// raster and the scan's APs' fields, is paid only when a scheme asks for it.
     pub fn with_likelihood(mut self, likelihood: Option<Arc<ScanLikelihood>>) -> Self {
+        if let Some(model) = &likelihood {
+            self.rss_offset =
+                RssOffsetEstimate::new(model.config().offset_prior_scans, MAX_RSS_OFFSET_DB);
+        }
         self.likelihood = likelihood;
         self
     }
@@ -356,12 +370,21 @@ impl Frontend {
             }
         };
         let obs = self.fix_on_floor(scan, obs)?;
-        Some(match &self.likelihood {
-            Some(model) => WifiObservation {
-                likelihood: model.relative(obs.floor, scan, 0.0).map(Arc::new),
-                ..obs
-            },
-            None => obs,
+        let Some(model) = &self.likelihood else {
+            return Some(obs);
+        };
+        let offset_db = if model.config().estimate_offset {
+            if let Some(r) = model.rss_residual(obs.floor, obs.estimate, scan) {
+                self.rss_offset.observe(r);
+            }
+            self.rss_offset.offset_db()
+        } else {
+            0.0
+        };
+        self.rss_offset_db = offset_db;
+        Some(WifiObservation {
+            likelihood: model.relative(obs.floor, scan, offset_db).map(Arc::new),
+            ..obs
         })
     }
 
@@ -537,7 +560,11 @@ struct Smoothing {
     site: Site,
     config: PositionerConfig,
     steps: Vec<StepEvent>,
+    /// The fixes, without their likelihood rasters (tens of kB each: a live stream keeps
+    /// its scan instead, and the raster is made again when smoothing).
     fixes: Vec<WifiObservation>,
+    /// Per fix: the scan and the RSS offset its likelihood was made with, when it had one.
+    fix_scans: Vec<Option<(WifiScan, f64)>>,
     /// The front end's floor after each event: `(time, floor)`.
     floors: Vec<(TimestampMs, Option<i32>)>,
 }
@@ -595,6 +622,7 @@ impl Positioner {
                 config: config.clone(),
                 steps: Vec::new(),
                 fixes: Vec::new(),
+                fix_scans: Vec::new(),
                 floors: Vec::new(),
             }),
         })
@@ -621,7 +649,15 @@ impl Positioner {
                     s.t
                 }
                 Event::Fix(f) => {
-                    sm.fixes.push(f.clone());
+                    let mut stored = f.clone();
+                    let scan = match (stored.likelihood.take(), sample) {
+                        (Some(_), Sample::Wifi(scan)) => {
+                            Some((scan.clone(), self.frontend.rss_offset_db))
+                        }
+                        _ => None,
+                    };
+                    sm.fixes.push(stored);
+                    sm.fix_scans.push(scan);
                     f.t
                 }
             };
@@ -648,13 +684,28 @@ impl Positioner {
                          build it with Positioner::new without a start to smooth"
                     .into(),
             })?;
+        // The fixes' likelihoods made again from their scans, as the live stream made them.
+        let fixes: Vec<WifiObservation> = match &sm.site.likelihood {
+            Some(model) if sm.fix_scans.iter().any(Option::is_some) => sm
+                .fixes
+                .iter()
+                .zip(&sm.fix_scans)
+                .map(|(f, scan)| WifiObservation {
+                    likelihood: scan.as_ref().and_then(|(scan, offset)| {
+                        model.relative(f.floor, scan, *offset).map(Arc::new)
+                    }),
+                    ..f.clone()
+                })
+                .collect(),
+            _ => sm.fixes.clone(),
+        };
         let mut track = crate::smooth::smooth_fusion(
             &sm.site,
             &sm.config.scheme,
             &sm.config,
             sm.config.seed,
             &sm.steps,
-            &sm.fixes,
+            &fixes,
         )?;
         if !sm.floors.is_empty() {
             // The front end's floor (Wi-Fi and barometer), as the live estimate reports it.

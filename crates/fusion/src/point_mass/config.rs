@@ -152,13 +152,18 @@ pub struct PointMassConfig {
     /// ([`wipdr_core::WifiLikelihood`], when the fix carries one) instead of the robust
     /// Gaussian about the fix: a scan that fits two places keeps both until the walk's shape
     /// and the plan choose. The coverage-gap terms (`gap_*`, `quality_*`) do not apply: a
-    /// place the radio map does not know reads the scan's mean likelihood. A fix without a
-    /// likelihood is weighed by the Gaussian.
+    /// place the radio map does not know reads its known neighbours' likelihood. A fix
+    /// without a likelihood is weighed by the Gaussian. On by default, mixed half and half
+    /// with the Gaussian (`likelihood_share`): five ILC floors causal 4.98 -> 4.77 m (p95
+    /// 13.61 -> 13.09), IPIN EvAAL 9.33 -> 9.19 (`docs/results/likelihood.md`);
+    /// [`PointMassConfig::paper`]: off.
     pub wifi_likelihood: bool,
     /// With `wifi_likelihood`, the likelihood's share of a cell's Wi-Fi weight, in `[0, 1]`:
     /// the weight is `(1 - share) g + share l + wifi_outlier` with `g` the Gaussian about
     /// the fix (coverage aware) and `l` the scan's likelihood relative to its best cell.
-    /// 1: the likelihood alone.
+    /// 1: the likelihood alone. 0.5: the five ILC floors' causal mean 4.80 / 4.73 / 4.96 m
+    /// at 0.4 / 0.5 / 0.6 (the likelihood alone 6.13 m: a place the point would have ruled
+    /// out keeps weight), `docs/results/likelihood.md`.
     pub likelihood_share: f64,
 }
 
@@ -200,7 +205,7 @@ impl Default for PointMassConfig {
             evidence_fast_rate: 0.0,
             evidence_slow_rate: 0.05,
             max_reset_share: 0.3,
-            wifi_likelihood: false,
+            wifi_likelihood: true,
             likelihood_share: 0.5,
         }
     }
@@ -210,7 +215,7 @@ impl PointMassConfig {
     /// `pmf` is wipdr's own scheme, in no paper: its preset is the settings it had before the
     /// five-floor sweeps that set its defaults (`wifi_outlier` 0.1, `gap_sd_m` 20 m, `wifi_sd_m`
     /// 6 m, `mode_hysteresis` 0.5, `estimate_median` false: the mean, no planless trails,
-    /// `unit_likelihood` 0.8, no gap term in the radius), the settings the "before" figures
+    /// `unit_likelihood` 0.8, no gap term in the radius, the Gaussian about the fix alone), the settings the "before" figures
     /// of `docs/experiments.md` were measured with.
     pub fn paper() -> Self {
         Self {
@@ -223,6 +228,7 @@ impl PointMassConfig {
             off_trail_likelihood: 0.5,
             unit_likelihood: 0.8,
             gap_radius_sd_per_m: 0.0,
+            wifi_likelihood: false,
             ..Self::default()
         }
     }
