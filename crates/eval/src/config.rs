@@ -330,10 +330,14 @@ impl EvalConfig {
                     let serde_json::Value::Object(t) = table else {
                         continue;
                     };
-                    if t.contains_key("scheme") {
+                    if let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str) {
+                        SchemeConfig::check_unread(kind, t.keys().map(String::as_str))
+                            .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
                         continue;
                     }
                     if wipdr_fusion::scheme_names().contains(&name.as_str()) {
+                        SchemeConfig::check_unread(name, t.keys().map(String::as_str))
+                            .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
                         t.insert("scheme".into(), serde_json::Value::String(name.clone()));
                     } else {
                         return Err(bad(format!(
@@ -603,6 +607,33 @@ pub(crate) mod tests {
                 .to_string();
             assert!(e.contains(path) && e.contains("t.toml"), "{text}: {e}");
         }
+    }
+
+    /// A scheme table setting a field its scheme does not read is refused, naming the table
+    /// path, the scheme and the field (with or without `scheme = ...`).
+    #[test]
+    fn a_scheme_table_with_a_field_its_scheme_ignores_is_refused() {
+        for (text, needle) in [
+            (
+                "[schemes.ekf]\n[schemes.ekf.speed]\nnormal_q_step_m2 = 2.0",
+                "schemes.ekf.speed",
+            ),
+            (
+                "[schemes.my]\nscheme = \"aekf\"\nq_heading_deg = 2.0",
+                "schemes.my.q_heading_deg",
+            ),
+        ] {
+            let e = EvalConfig::from_toml(text, "t.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(needle) && e.contains("does not read"),
+                "{text}: {e}"
+            );
+        }
+        assert!(
+            EvalConfig::from_toml("[schemes.akf.speed]\nnormal_q_step_m2 = 2.0", "t.toml").is_ok()
+        );
     }
 
     #[test]

@@ -323,6 +323,56 @@ impl SchemeConfig {
         }
     }
 
+    /// The fields (and sections) of scheme `name`'s config type that the scheme does not
+    /// read: the EKF family shares one config type ([`EkfConfig`]) whose parts each variant
+    /// reads or not. A config that sets one of them is refused
+    /// ([`SchemeConfig::check_unread`]) instead of silently ignored. Empty for the other
+    /// schemes and unknown names.
+    ///
+    /// ```
+    /// use wipdr_fusion::SchemeConfig;
+    /// assert!(SchemeConfig::unread_fields("ekf").contains(&"robust"));
+    /// assert!(!SchemeConfig::unread_fields("rkf").contains(&"robust"));
+    /// assert!(SchemeConfig::unread_fields("akf").contains(&"q_heading_deg"));
+    /// ```
+    pub fn unread_fields(name: &str) -> &'static [&'static str] {
+        match name {
+            // `Adaptation::None`, no robust test.
+            "ekf" => &["turn", "scenario", "speed", "robust"],
+            // Heading by turn state (not `q_heading_deg`), no robust test.
+            "aekf" => &["q_heading_deg", "scenario", "speed", "robust"],
+            // Position by scenario, step by speed, heading by turn state.
+            "akf" => &["q_position_m2", "q_step_m2", "q_heading_deg", "robust"],
+            "rkf" => &["turn", "scenario", "speed"],
+            "arkf" => &["q_position_m2", "q_step_m2", "q_heading_deg"],
+            _ => &[],
+        }
+    }
+
+    /// Refuses `keys` (the fields a config file sets in a table for scheme `name`) that the
+    /// scheme does not read ([`SchemeConfig::unread_fields`]); the error names the scheme, the
+    /// field and the schemes that do read it.
+    pub fn check_unread<'a>(
+        name: &str,
+        keys: impl IntoIterator<Item = &'a str>,
+    ) -> Result<(), String> {
+        let unread = Self::unread_fields(name);
+        for key in keys {
+            if unread.contains(&key) {
+                let readers: Vec<&str> = ["ekf", "aekf", "akf", "rkf", "arkf"]
+                    .into_iter()
+                    .filter(|s| !Self::unread_fields(s).contains(&key))
+                    .collect();
+                return Err(format!(
+                    "{key}: scheme `{name}` does not read it (only {} do); remove it or choose \
+                     one of those schemes",
+                    readers.join(", ")
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The scheme's name.
     pub fn name(&self) -> &'static str {
         match self {

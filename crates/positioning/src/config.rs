@@ -170,7 +170,19 @@ impl PositionerConfig {
     /// Reads a TOML config: a partial section merges onto the defaults of its context
     /// ([`crate::merge::from_toml_onto`]), unknown fields are errors naming their path.
     pub fn from_toml(text: &str) -> Result<Self, PositioningError> {
-        let cfg: Self = crate::merge::from_toml_onto(text, &Self::default())?;
+        let user = crate::merge::toml_to_json(text).map_err(PositioningError::Parse)?;
+        // A field the chosen scheme would not read is refused, not ignored.
+        if let Some(serde_json::Value::Object(t)) = user.get("scheme")
+            && let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str)
+        {
+            SchemeConfig::check_unread(kind, t.keys().map(String::as_str)).map_err(|reason| {
+                PositioningError::InvalidConfig {
+                    path: format!("scheme.{}", reason.split(':').next().unwrap_or("")),
+                    reason,
+                }
+            })?;
+        }
+        let cfg: Self = crate::merge::from_value_onto(user, &Self::default())?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -254,6 +266,29 @@ mod tests {
         let text = toml::to_string_pretty(&cfg).unwrap();
         assert!(text.contains("odometry = \"learned\""), "{text}");
         assert_eq!(PositionerConfig::paper().odometry, Odometry::Steps);
+    }
+
+    /// A field the chosen scheme does not read is refused, naming the scheme and the field;
+    /// the schemes that read it take it.
+    #[test]
+    fn a_field_the_scheme_ignores_is_refused() {
+        let e = PositionerConfig::from_toml(
+            "[scheme]\nscheme = \"ekf\"\n[scheme.robust]\nalpha = 0.05",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("scheme.robust") && e.contains("`ekf`") && e.contains("rkf"),
+            "{e}"
+        );
+        let cfg = PositionerConfig::from_toml(
+            "[scheme]\nscheme = \"rkf\"\n[scheme.robust]\nalpha = 0.05",
+        )
+        .unwrap();
+        assert_eq!(cfg.scheme.name(), "rkf");
+        assert!(
+            PositionerConfig::from_toml("[scheme]\nscheme = \"akf\"\nq_heading_deg = 3.0").is_err()
+        );
     }
 
     /// TOML's `nan` would reach serde as null and turn an optional threshold off: refused,
