@@ -331,12 +331,12 @@ impl EvalConfig {
                         continue;
                     };
                     if let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str) {
-                        SchemeConfig::check_unread(kind, t.keys().map(String::as_str))
+                        wipdr_positioning::merge::check_scheme_table(kind, t)
                             .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
                         continue;
                     }
                     if wipdr_fusion::scheme_names().contains(&name.as_str()) {
-                        SchemeConfig::check_unread(name, t.keys().map(String::as_str))
+                        wipdr_positioning::merge::check_scheme_table(name, t)
                             .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
                         t.insert("scheme".into(), serde_json::Value::String(name.clone()));
                     } else {
@@ -619,7 +619,7 @@ pub(crate) mod tests {
                 "schemes.ekf.speed",
             ),
             (
-                "[schemes.my]\nscheme = \"aekf\"\nq_heading_deg = 2.0",
+                "[schemes.my]\nscheme = \"aekf\"\nq_heading_deg = 3.0",
                 "schemes.my.q_heading_deg",
             ),
         ] {

@@ -175,7 +175,7 @@ impl PositionerConfig {
         if let Some(serde_json::Value::Object(t)) = user.get("scheme")
             && let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str)
         {
-            SchemeConfig::check_unread(kind, t.keys().map(String::as_str)).map_err(|reason| {
+            crate::merge::check_scheme_table(kind, t).map_err(|reason| {
                 PositioningError::InvalidConfig {
                     path: format!("scheme.{}", reason.split(':').next().unwrap_or("")),
                     reason,

@@ -825,12 +825,14 @@ fn bumps(peaks: &[(f64, f64)]) -> Arc<wipdr_core::WifiLikelihood> {
     Arc::new(wipdr_core::WifiLikelihood::from_log(grid, &values, 0.0).unwrap())
 }
 
-/// A scan that fits two places keeps both: the matcher's point picks the wrong one at each
-/// scan, the walk then moves 7 m north, and only the truth's place fits both scans. With
-/// the likelihood alone `pmf` ends there; with the Gaussian about the (wrong) points it
-/// does not; with `wifi_likelihood` off the likelihood a fix carries is ignored.
+/// A scan that fits two places keeps both: the matcher's point picks the wrong place at
+/// each scan (10 m west of it, consistently), the walk moves 7 m north, and only the truth's
+/// place fits both scans' likelihoods. With the likelihood alone `pmf` ends at the truth;
+/// with the Gaussian about the points it follows them; with `wifi_likelihood` off the
+/// likelihood a fix carries is not read.
 #[test]
 fn a_scan_that_fits_two_places_keeps_both_until_the_walk_chooses() {
+    let truth = Point2::new(40.0, 17.0);
     let run = |cfg: PointMassConfig| {
         let mut f = PointMassFilter::new(cfg, None, None, None).unwrap();
         // The truth starts at (40, 10); the scan fits (10, 10) as well, and the point is there.
@@ -840,35 +842,29 @@ fn a_scan_that_fits_two_places_keeps_both_until_the_walk_chooses() {
         for k in 1..=10 {
             f.on_step(&step(500 * k, 0.0));
         }
-        // At (40, 17) the scan fits (70, 17) too, and the point is there.
-        let mut second = fix(6000, 70.0, 17.0);
+        // At (40, 17) the scan fits (70, 17) too; the point is at (10, 17), where the first
+        // wrong place would have walked.
+        let mut second = fix(6000, 10.0, 17.0);
         second.likelihood = Some(bumps(&[(40.0, 17.0), (70.0, 17.0)]));
         f.on_wifi(&second);
         f.estimate().unwrap().position
     };
-    let likelihood = PointMassConfig {
+    let likelihood = run(PointMassConfig {
         wifi_likelihood: true,
         likelihood_share: 1.0,
         ..PointMassConfig::default()
-    };
-    let p = run(likelihood.clone());
-    assert!((p - Point2::new(40.0, 17.0)).norm() < 3.0, "{p:?}");
-    let gaussian = run(PointMassConfig::default());
-    assert!(
-        (gaussian - Point2::new(40.0, 17.0)).norm() > 10.0,
-        "{gaussian:?}"
-    );
-    // The shipped mixture keeps the truth too; off, the likelihood is not read.
-    let mixed = run(PointMassConfig {
-        likelihood_share: 0.5,
-        ..likelihood
     });
-    assert!((mixed - Point2::new(40.0, 17.0)).norm() < 3.0, "{mixed:?}");
-    let off = run(PointMassConfig {
+    assert!((likelihood - truth).norm() < 3.0, "{likelihood:?}");
+    let off = PointMassConfig {
         wifi_likelihood: false,
         ..PointMassConfig::default()
-    });
-    assert_eq!(off, gaussian);
+    };
+    let gaussian = run(off.clone());
+    assert!(
+        (gaussian - Point2::new(10.0, 17.0)).norm() < 3.0,
+        "{gaussian:?}"
+    );
+    assert!((gaussian - truth).norm() > 20.0, "{gaussian:?}");
 }
 
 /// With `likelihood_share` 0 the likelihood a fix carries changes nothing (the same bits as

@@ -220,10 +220,16 @@ impl SiteModel {
                 }
             }
         };
-        site.likelihood = Some(Arc::new(ScanLikelihood::fit(
-            &map,
-            &data.config.likelihood,
-        )?));
+        // Data-dependent failures (a raster over its limit because a reference point lies
+        // far off the floor) leave the model without the likelihood, logged, as the trail
+        // raster does: its fixes are then points only (`pmf` weighs them by the Gaussian).
+        site.likelihood = match ScanLikelihood::fit(&map, &data.config.likelihood) {
+            Ok(l) => Some(Arc::new(l)),
+            Err(e) => {
+                tracing::warn!(site = %data.name, error = %e, "no scan likelihood: fixes are points only");
+                None
+            }
+        };
         Ok(Self {
             matcher,
             site,
