@@ -172,6 +172,46 @@ pub fn from_value_onto<T: Serialize + DeserializeOwned>(
     from_value_with_path(merge_values(base, user, "", wipdr_tag_defaults))
 }
 
+/// Refuses a field of a scheme table (the keys of `table`, a `[scheme]` or `[schemes.NAME]`
+/// section configuring scheme `kind`) that the scheme does not read
+/// ([`wipdr_fusion::SchemeConfig::unread_fields`]) and that is set to a value other than the
+/// scheme's shipped default and its paper preset: a written-out config lists every field, so
+/// a default value there says nothing, while any other value would be silently ignored.
+/// The error is `FIELD: ...` (the caller prefixes the table's path).
+///
+/// ```
+/// use serde_json::json;
+/// use wipdr_positioning::merge::check_scheme_table;
+/// let t = json!({"scheme": "ekf", "robust": {"alpha": 0.05}});
+/// assert!(check_scheme_table("ekf", t.as_object().unwrap()).unwrap_err().starts_with("robust:"));
+/// assert!(check_scheme_table("rkf", t.as_object().unwrap()).is_ok());
+/// ```
+pub fn check_scheme_table(
+    kind: &str,
+    table: &serde_json::Map<String, Value>,
+) -> Result<(), String> {
+    let unread = wipdr_fusion::SchemeConfig::unread_fields(kind);
+    if unread.is_empty() {
+        return Ok(());
+    }
+    let presets: Vec<Value> = [
+        wipdr_fusion::SchemeConfig::default_for(kind),
+        wipdr_fusion::SchemeConfig::paper_for(kind),
+    ]
+    .into_iter()
+    .filter_map(|c| serde_json::to_value(c.ok()?).ok())
+    .collect();
+    let set: Vec<&str> = table
+        .iter()
+        .filter(|(key, value)| {
+            unread.contains(&key.as_str())
+                && !presets.iter().any(|p| p.get(key.as_str()) == Some(*value))
+        })
+        .map(|(key, _)| key.as_str())
+        .collect();
+    wipdr_fusion::SchemeConfig::check_unread(kind, set)
+}
+
 #[cfg(test)]
 mod tests {
     use crate::PositionerConfig;
@@ -212,44 +252,4 @@ mod tests {
             assert!(e.contains(path), "{text}: {e}");
         }
     }
-}
-
-/// Refuses a field of a scheme table (the keys of `table`, a `[scheme]` or `[schemes.NAME]`
-/// section configuring scheme `kind`) that the scheme does not read
-/// ([`wipdr_fusion::SchemeConfig::unread_fields`]) and that is set to a value other than the
-/// scheme's shipped default and its paper preset: a written-out config lists every field, so
-/// a default value there says nothing, while any other value would be silently ignored.
-/// The error is `FIELD: ...` (the caller prefixes the table's path).
-///
-/// ```
-/// use serde_json::json;
-/// use wipdr_positioning::merge::check_scheme_table;
-/// let t = json!({"scheme": "ekf", "robust": {"alpha": 0.05}});
-/// assert!(check_scheme_table("ekf", t.as_object().unwrap()).unwrap_err().starts_with("robust:"));
-/// assert!(check_scheme_table("rkf", t.as_object().unwrap()).is_ok());
-/// ```
-pub fn check_scheme_table(
-    kind: &str,
-    table: &serde_json::Map<String, Value>,
-) -> Result<(), String> {
-    let unread = wipdr_fusion::SchemeConfig::unread_fields(kind);
-    if unread.is_empty() {
-        return Ok(());
-    }
-    let presets: Vec<Value> = [
-        wipdr_fusion::SchemeConfig::default_for(kind),
-        wipdr_fusion::SchemeConfig::paper_for(kind),
-    ]
-    .into_iter()
-    .filter_map(|c| serde_json::to_value(c.ok()?).ok())
-    .collect();
-    let set: Vec<&str> = table
-        .iter()
-        .filter(|(key, value)| {
-            unread.contains(&key.as_str())
-                && !presets.iter().any(|p| p.get(key.as_str()) == Some(*value))
-        })
-        .map(|(key, _)| key.as_str())
-        .collect();
-    wipdr_fusion::SchemeConfig::check_unread(kind, set)
 }
