@@ -347,22 +347,30 @@ impl EvalReport {
     /// The scan likelihood's calibration per floor (in floor order) and pooled (last,
     /// labelled `pooled`).
     pub fn scan_likelihood_summaries(&self) -> Vec<(String, ScanLikelihoodSummary)> {
-        let mut out: Vec<(String, ScanLikelihoodSummary)> = self
+        self.per_floor_and_pooled(
+            &self.scan_likelihood,
+            |m| &m.floor,
+            |walks| ScanLikelihoodSummary::of(walks.flat_map(|m| &m.scans)),
+        )
+    }
+
+    /// `summary` of the `items` of each floor (in floor order, by `floor_of`) and of all of
+    /// them (last, labelled `pooled`).
+    fn per_floor_and_pooled<'a, T, S>(
+        &self,
+        items: &'a [T],
+        floor_of: impl Fn(&T) -> &String,
+        summary: impl Fn(&mut dyn Iterator<Item = &'a T>) -> S,
+    ) -> Vec<(String, S)> {
+        let mut out: Vec<(String, S)> = self
             .floor_order
             .iter()
             .map(|f| {
-                let scans = self
-                    .scan_likelihood
-                    .iter()
-                    .filter(|m| &m.floor == f)
-                    .flat_map(|m| &m.scans);
-                (f.clone(), ScanLikelihoodSummary::of(scans))
+                let mut of_floor = items.iter().filter(|m| floor_of(m) == f);
+                (f.clone(), summary(&mut of_floor))
             })
             .collect();
-        out.push((
-            "pooled".into(),
-            ScanLikelihoodSummary::of(self.scan_likelihood.iter().flat_map(|m| &m.scans)),
-        ));
+        out.push(("pooled".into(), summary(&mut items.iter())));
         out
     }
 
@@ -407,23 +415,11 @@ impl EvalReport {
     /// The motion source's per-segment error per floor (in floor order) and pooled (last,
     /// labelled `pooled`).
     pub fn motion_summaries(&self) -> Vec<(String, MotionSummary)> {
-        let mut out: Vec<(String, MotionSummary)> = self
-            .floor_order
-            .iter()
-            .map(|f| {
-                let segs = self
-                    .motion
-                    .iter()
-                    .filter(|m| &m.floor == f)
-                    .flat_map(|m| &m.segments);
-                (f.clone(), MotionSummary::of(segs))
-            })
-            .collect();
-        out.push((
-            "pooled".into(),
-            MotionSummary::of(self.motion.iter().flat_map(|m| &m.segments)),
-        ));
-        out
+        self.per_floor_and_pooled(
+            &self.motion,
+            |m| &m.floor,
+            |walks| MotionSummary::of(walks.flat_map(|m| &m.segments)),
+        )
     }
 
     /// The motion source's per-segment displacement error as text, a row per floor and one
