@@ -442,6 +442,7 @@ impl PyPositioner {
                     Some(plan) => Site {
                         coverage: site_model.site().coverage.clone(),
                         trails: site_model.site().trails.clone(),
+                        likelihood: site_model.site().likelihood.clone(),
                         ..Site::from_plan(Some(&plan.inner))
                     },
                     None => site_model.site().clone(),
