@@ -17,7 +17,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use std::path::PathBuf;
-use wipdr_eval::fold::{FoldModel, folds_of};
+use wipdr_eval::fold_model::{FoldModel, folds_of};
 use wipdr_eval::pipeline::{EvalConfig, FloorInput};
 use wipdr_positioning::{Sample, StreamSpec, samples_of};
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where ILC walks start: how far each walk's first waypoint lies from the nearest first
 waypoint of a training walk (the evaluation's folds: walks sorted by file name, walk i in
-fold i mod 5, as `wipdr_eval::folds::folds_by_name`). Tells whether a start prior at the
+fold i mod 5, as `wipdr_eval::fold_rules::folds_by_name`). Tells whether a start prior at the
 training walks' starts could help `pmf`'s first waypoints (docs/experiments.md, walk starts).
 
 Standard library only; reads the data in place:

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 use wipdr_core::Floor as CoreFloor;
-use wipdr_eval::fold::FoldModel;
+use wipdr_eval::fold_model::FoldModel;
 use wipdr_eval::pipeline::{self, FloorInput};
 
 /// One item of `evaluate`'s `data`: a folder to read or a floor already read.

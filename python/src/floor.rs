@@ -226,7 +226,7 @@ impl PyFloor {
     /// The evaluation protocol's fold of each walk (walk ``i`` in fold ``i mod 5``, or by
     /// route where every walk has one: leave-one-route-out).
     fn folds(&self) -> Vec<usize> {
-        wipdr_eval::folds::folds_of_walks(&self.inner.walks).0
+        wipdr_eval::fold_rules::folds_of_walks(&self.inner.walks).0
     }
 
     /// Walk files that could not be read when the folder was read: ``[(file, error)]``.

@@ -72,7 +72,7 @@ impl PySiteModel {
         let model = py
             .detach(|| {
                 let training: Vec<&Walk> = floor.data.walks.iter().collect();
-                wipdr_eval::fold::fit_site(&floor, usize::MAX, &training, &cfg, None)
+                wipdr_eval::fold_model::fit_site(&floor, usize::MAX, &training, &cfg, None)
             })
             .map_err(|e| eval_error(&e))?;
         Ok(Self {

@@ -29,7 +29,7 @@ fn eval_errors(
         .iter()
         .position(|w| w.meta.id == id)
         .unwrap();
-    let fold = wipdr_eval::fold::folds_of(floor)[index];
+    let fold = wipdr_eval::fold_model::folds_of(floor)[index];
     let floors = std::slice::from_ref(floor);
     let prepared = pipeline::prepare_items(floors, cfg, &[(0, fold)]).unwrap();
     let report = pipeline::run_prepared(floors, &prepared, cfg, schemes, &|| {}).unwrap();

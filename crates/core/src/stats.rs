@@ -1,5 +1,5 @@
 //! Error summaries shared by every tool that reports accuracy (the fold rule of the evaluation
-//! protocol is `wipdr_eval::folds`).
+//! protocol is `wipdr_eval::fold_rules`).
 
 use serde::{Deserialize, Serialize};
 

@@ -21,7 +21,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::Point2;
-use wipdr_eval::folds::folds_by_name;
+use wipdr_eval::fold_rules::folds_by_name;
 use wipdr_fingerprint::RadioMap;
 use wipdr_fingerprint::propagation::{
     ApModel, PropagationConfig, extend_radio_map, fit_ap_models_with_report,

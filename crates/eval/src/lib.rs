@@ -6,7 +6,7 @@
 //! per floor and pooled ([`report`]). Fusion schemes are started from the first Wi-Fi fix; the
 //! PDR-only baseline from the true first waypoint (labelled so).
 //!
-//! The IPIN competition's protocol runs through the same code ([`folds::folds_of_walks`]):
+//! The IPIN competition's protocol runs through the same code ([`fold_rules::folds_of_walks`]):
 //! where every walk has a route (IPIN logfiles, `TrialNN`), folds are leave-one-route-out;
 //! where waypoints carry floors, each scored point has a floor error and the reports give the
 //! floor hit rate and the EvAAL metric (75th percentile of 2D error + 15 m per floor of error;
@@ -17,7 +17,7 @@
 //!
 //! Every run goes through `wipdr-positioning`'s pipeline: a test walk's raw samples are
 //! streamed through the [`Positioner`](wipdr_positioning::Positioner)'s front end (PDR +
-//! stream matcher) once ([`fold::FoldModel::prepare_walk`]), and each scheme's fusion stage
+//! stream matcher) once ([`fold_model::FoldModel::prepare_walk`]), and each scheme's fusion stage
 //! replays the recorded events ([`pipeline::run_scheme`]); [`pipeline::locate`] streams a walk
 //! through a whole `Positioner` and gives the same track.
 //!
@@ -40,8 +40,8 @@ pub mod coverage;
 pub mod drawing;
 pub mod evaal_score;
 pub mod fingerprint_benchmark;
-pub mod fold;
-pub mod folds;
+pub mod fold_model;
+pub mod fold_rules;
 pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;

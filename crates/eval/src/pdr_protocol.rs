@@ -8,7 +8,7 @@
 //! scored per leg (relative length error, heading error) and as PDR-only positions started at
 //! the true first waypoint, scored after the walk's first Wi-Fi scan ([`score_schemes`]).
 
-use crate::folds::folds_of_walk_refs;
+use crate::fold_rules::folds_of_walk_refs;
 use rayon::prelude::*;
 use wipdr_core::{TimestampMs, Walk, Waypoint};
 use wipdr_pdr::calibrate::{
@@ -32,7 +32,7 @@ pub struct WalkRun {
 }
 
 /// Runs `cfg` over the walks of one floor (parallel); folds as the evaluation's
-/// ([`crate::folds::folds_of_walk_refs`]: by route where walks have routes, else by id).
+/// ([`crate::fold_rules::folds_of_walk_refs`]: by route where walks have routes, else by id).
 pub fn run_walks(walks: &[&Walk], cfg: &PdrConfig) -> Vec<WalkRun> {
     let (folds, _) = folds_of_walk_refs(walks);
     walks

@@ -11,8 +11,8 @@
 //! labelled so.
 
 use crate::coverage::attach_coverage;
-use crate::fold::FoldModel;
-use crate::folds::FOLDS;
+use crate::fold_model::FoldModel;
+use crate::fold_rules::FOLDS;
 use crate::report::{EvalReport, SkippedRun, WalkMotion, WalkResult, WalkScanLikelihood};
 use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
@@ -218,7 +218,7 @@ fn check_enough_walks(f: &FloorInput) -> Result<(), EvalError> {
     let n = f.data.walks.len();
     let by_route = f.data.walks.iter().all(|w| w.meta.route.is_some()) && n > 0;
     if by_route {
-        let routes = crate::fold::fold_count(f);
+        let routes = crate::fold_model::fold_count(f);
         if routes < 2 {
             return Err(EvalError::TooFewRoutes {
                 floor: f.label.clone(),
@@ -248,7 +248,7 @@ pub fn work_items(floors: &[FloorInput]) -> Result<Vec<(usize, usize)>, EvalErro
     let mut items = Vec::new();
     for (fi, f) in floors.iter().enumerate() {
         check_enough_walks(f)?;
-        items.extend((0..crate::fold::fold_count(f)).map(|fold| (fi, fold)));
+        items.extend((0..crate::fold_model::fold_count(f)).map(|fold| (fi, fold)));
     }
     Ok(items)
 }
@@ -437,7 +437,7 @@ pub fn locate_with(
     let model = match training {
         Training::ProtocolFold => {
             check_enough_walks(floor)?;
-            FoldModel::build(floor, crate::fold::folds_of(floor)[index], cfg)?
+            FoldModel::build(floor, crate::fold_model::folds_of(floor)[index], cfg)?
         }
         Training::AllOthers => FoldModel::build_all_but(floor, index, cfg)?,
     };
@@ -503,7 +503,7 @@ pub fn locate_walk(
         scheme,
         &StreamSpec {
             id: Some(walk.meta.id.clone()),
-            identity: crate::fold::identity_of(walk),
+            identity: crate::fold_model::identity_of(walk),
             start: start.map(|(_, p)| p),
         },
     )?;

@@ -25,7 +25,7 @@ fn leave_one_route_out_with_floors_and_evaal() {
     let data = read_logfile_dir(&dir, &ReadOptions::default()).unwrap();
     let posi: usize = data.walks.iter().map(|w| w.walk.waypoints.len()).sum();
     let floor = FloorInput::new("ipin2023", data.into_floor());
-    assert_eq!(wipdr_eval::fold::fold_count(&floor), 8);
+    assert_eq!(wipdr_eval::fold_model::fold_count(&floor), 8);
     let schemes = ["wifi", "pdr", "ekf", "pmf"].map(String::from);
     let report = evaluate(&[floor], &EvalConfig::default(), &schemes, &|| {}).unwrap();
     for s in &schemes {

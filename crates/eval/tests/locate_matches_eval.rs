@@ -17,7 +17,7 @@ fn check(cfg: &EvalConfig) {
     let report = pipeline::evaluate(std::slice::from_ref(&floor), cfg, &schemes, &|| {}).unwrap();
     let mut compared = 0;
     // One walk of each fold, every scheme.
-    for fold in 0..wipdr_eval::folds::FOLDS {
+    for fold in 0..wipdr_eval::fold_rules::FOLDS {
         let result = report
             .walks
             .iter()
@@ -58,7 +58,7 @@ fn check(cfg: &EvalConfig) {
             compared += 1;
         }
     }
-    assert_eq!(compared, wipdr_eval::folds::FOLDS * schemes.len());
+    assert_eq!(compared, wipdr_eval::fold_rules::FOLDS * schemes.len());
 }
 
 #[test]

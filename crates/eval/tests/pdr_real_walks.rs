@@ -4,7 +4,7 @@
 //! (`$WIPDR_DATA`, else `../shared/data`) lacks it.
 
 use wipdr_core::stats::ErrorStats;
-use wipdr_eval::folds::{FOLDS, folds_by_name};
+use wipdr_eval::fold_rules::{FOLDS, folds_by_name};
 use wipdr_io::floor::{ReadOptions, read_floor_dir};
 use wipdr_pdr::calibrate::{
     CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, fit_heading_offset, fit_step_length,

@@ -32,7 +32,7 @@ fn synthesised_fingerprints_fill_walkable_gaps_only() {
         .iter()
         .map(|w| w.meta.id.as_str())
         .collect();
-    let folds = wipdr_eval::folds::folds_by_name(&ids);
+    let folds = wipdr_eval::fold_rules::folds_by_name(&ids);
     let training = floor
         .data
         .walks

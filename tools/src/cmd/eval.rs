@@ -220,7 +220,7 @@ fn evaluate_items(
     let folds: Vec<String> = floors
         .iter()
         .map(|f| {
-            let n = wipdr_eval::fold::fold_count(f);
+            let n = wipdr_eval::fold_model::fold_count(f);
             if f.data.walks.iter().all(|w| w.meta.route.is_some()) {
                 format!("leave-one-route-out ({n} routes)")
             } else {

@@ -27,7 +27,7 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wipdr_core::Walk;
-use wipdr_eval::fold::folds_of;
+use wipdr_eval::fold_model::folds_of;
 use wipdr_positioning::site_model::{
     DEFAULT_LEAVE_OUT_GROUPS, SiteModel, SourceFile, TrainingData, leave_one_walk_out,
 };

@@ -20,7 +20,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::PathBuf;
 use wipdr_core::angle::wrap_pi;
-use wipdr_eval::folds::FOLDS;
+use wipdr_eval::fold_rules::FOLDS;
 use wipdr_eval::pdr_protocol::{WalkRun, calibrate_steps_with_grid};
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, fit_heading_offset, leg_errors, track};
 use wipdr_pdr::error_model::{

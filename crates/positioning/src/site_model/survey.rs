@@ -116,7 +116,7 @@ struct WalkOut {
 
 /// Most radio maps [`leave_one_walk_out`] fits by default: up to this many walks each is
 /// left out alone; a site with more walks is split into this many interleaved groups left
-/// out in turn, as many as the evaluation protocol's folds (`wipdr_eval::folds::FOLDS`), so
+/// out in turn, as many as the evaluation protocol's folds (`wipdr_eval::fold_rules::FOLDS`), so
 /// that the errors compare with the `wifi` rows of `wipdr eval`. On `ilc20/site1` (208
 /// walks, two cores shared with other builds) one map per walk ran for over 10 minutes
 /// before it was stopped; 10 groups took 77 s, 5 groups 64 s, beside a fit of 10 to 24 s

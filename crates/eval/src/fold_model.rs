@@ -3,7 +3,7 @@
 //! positions.
 
 use crate::coverage::coverage_distance;
-use crate::folds::folds_of_walks;
+use crate::fold_rules::folds_of_walks;
 use crate::pipeline::{EvalConfig, EvalError, FloorInput, PreparedWalk};
 use wipdr_core::{Point2, TimestampMs, Walk};
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec, TrainingData};

@@ -12,7 +12,7 @@ pub const FOLDS: usize = 5;
 /// each input name (in input order), its fold.
 ///
 /// ```
-/// use wipdr_eval::folds::folds_by_name;
+/// use wipdr_eval::fold_rules::folds_by_name;
 /// let f = folds_by_name(&["c", "a", "b", "f", "e", "d"]);
 /// assert_eq!(f, vec![2, 0, 1, 0, 4, 3]);
 /// ```
@@ -32,7 +32,7 @@ pub fn folds_by_name<S: AsRef<str>>(names: &[S]) -> Vec<usize> {
 ///
 /// ```
 /// use wipdr_core::Walk;
-/// use wipdr_eval::folds::folds_of_walks;
+/// use wipdr_eval::fold_rules::folds_of_walks;
 /// let walk = |id: &str, route: Option<&str>| {
 ///     let mut w = Walk::default();
 ///     w.meta.id = id.into();
