@@ -56,7 +56,7 @@ impl WifiLikelihood {
             return None;
         }
         let (mut sum, mut known) = (0.0, 0usize);
-        let relative = log_likelihood
+        let mut relative: Vec<f32> = log_likelihood
             .iter()
             .map(|v| match v {
                 Some(v) if v.is_finite() => {
@@ -70,7 +70,6 @@ impl WifiLikelihood {
             .collect();
         // known >= 1: the maximum is some cell's value.
         let unknown = sum / known as f64;
-        let mut relative: Vec<f32> = relative;
         fill_from_neighbours(&grid, &mut relative, reach_m);
         Some(Self {
             grid,

@@ -464,11 +464,7 @@ impl ScanLikelihood {
         scan: &WifiScan,
         offset_db: f64,
     ) -> Option<WifiLikelihood> {
-        let floor = match (floor, self.floors.as_slice()) {
-            (None, [only]) => only.floor,
-            _ => floor,
-        };
-        let raster = self.raster(floor, scan, offset_db)?;
+        let raster = self.raster(self.resolve_floor(floor), scan, offset_db)?;
         WifiLikelihood::from_log(
             raster.grid,
             &raster.log_likelihood,
@@ -476,15 +472,20 @@ impl ScanLikelihood {
         )
     }
 
+    /// `floor` as the fields know it: `None` on a model of one floor means that floor.
+    fn resolve_floor(&self, floor: Option<i32>) -> Option<i32> {
+        match (floor, self.floors.as_slice()) {
+            (None, [only]) => only.floor,
+            _ => floor,
+        }
+    }
+
     /// The device's RSS offset as one scan at `p` on `floor` shows it: the median of the
     /// scan's scored readings minus the field's mean RSS at `p`'s cell, over the APs whose
     /// field holds that cell; `None` with fewer than three such APs, off the raster or for
     /// a floor without fields. What [`RssOffsetEstimate`] averages over a walk.
     pub fn rss_residual(&self, floor: Option<i32>, p: Point2, scan: &WifiScan) -> Option<f64> {
-        let floor = match (floor, self.floors.as_slice()) {
-            (None, [only]) => only.floor,
-            _ => floor,
-        };
+        let floor = self.resolve_floor(floor);
         let f = self.floors.iter().find(|f| f.floor == floor)?;
         let cell = u32::try_from(f.grid.index_of(p)?).ok()?;
         let (aps, _) = self.scan_aps(scan);

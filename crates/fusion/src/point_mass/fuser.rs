@@ -280,6 +280,7 @@ impl PointMassFilter {
         // The likelihood's share of the weight (`likelihood_share`), the Gaussian's the rest.
         let keep = 1.0 - share;
         let background = outlier + likelihood.as_ref().map_or(0.0, |l| share * l.unknown());
+        let mut likelihood_columns: Vec<usize> = Vec::new();
         let total = self.weigh(
             background,
             |x| {
@@ -307,9 +308,15 @@ impl PointMassFilter {
                 }
                 if let Some(l) = &likelihood {
                     let (grid, powered) = (l.grid(), power != 1.0);
+                    // The likelihood raster's column of each window column: the same for
+                    // every row, so looked up at the first row only.
+                    if likelihood_columns.len() != xs.len() {
+                        likelihood_columns.clear();
+                        likelihood_columns
+                            .extend(xs.iter().map(|&x| grid.col_of(x).unwrap_or(NO_CELL)));
+                    }
                     let row = grid.row_of(y).unwrap_or(NO_CELL);
-                    for (weight, &x) in weights.iter_mut().zip(xs) {
-                        let column = grid.col_of(x).unwrap_or(NO_CELL);
+                    for (weight, &column) in weights.iter_mut().zip(&likelihood_columns) {
                         let v = l.at_cell(column, row);
                         let v = if powered { v.powf(power) } else { v };
                         *weight = keep * (*weight - outlier) + share * v + outlier;
