@@ -25,6 +25,12 @@ check-links:
 ci:
     bash .ci/run
 
+# Rewrite the generated tables of docs/results/ from their commands (docs/results/regenerate.py):
+# `just results`, `just results --check` (empty diff or exit 1), `just results --only ilc-`.
+results *args:
+    cargo build --release -p wipdr
+    python3 docs/results/regenerate.py {{args}}
+
 # Criterion benchmarks (all, or one: `just bench matchers`).
 bench name="":
     cargo bench -p wipdr-benches {{ if name == "" { "" } else { "--bench " + name } }}
