@@ -126,8 +126,6 @@ pub struct PointMassFilter {
     walked_since_fix: f64,
     /// Log of the inputs' marginal likelihood so far ([`PointMassFilter::log_evidence`]).
     log_evidence: f64,
-    /// Fast and slow running means of the fixes' evidence (sensor resetting).
-    evidence_means: Option<(f64, f64)>,
     initialised: bool,
     reporting: bool,
     /// The fixes' error variance learned from their residuals (the reported radius).
@@ -197,7 +195,6 @@ impl PointMassFilter {
             pending_drift: 0.0,
             walked_since_fix: 0.0,
             log_evidence: 0.0,
-            evidence_means: None,
             initialised: false,
             reporting: false,
             t: 0,
