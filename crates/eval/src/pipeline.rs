@@ -71,14 +71,9 @@ pub enum EvalError {
         /// What is wrong, with the field path.
         reason: String,
     },
-    /// A config value is out of range.
-    #[error("{path}: {reason}")]
-    InvalidConfig {
-        /// Dotted path of the field.
-        path: String,
-        /// What is wrong, with the value given.
-        reason: String,
-    },
+    /// A config value is out of range: the field's dotted path and what is wrong.
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// The positioning pipeline could not be built.
     #[error("floor {floor}: {source}")]
     Positioning {
@@ -486,13 +481,13 @@ pub fn locate_walk(
     let start = if scheme_cfg.name() == "pdr" {
         let Some(w) = walk.waypoints.first() else {
             return Err(SiteModelError::Positioning(
-                wipdr_positioning::PositioningError::InvalidConfig {
-                    path: "scheme".into(),
-                    reason: format!(
+                wipdr_positioning::PositioningError::InvalidConfig(wipdr_core::ConfigError::new(
+                    "scheme",
+                    format!(
                         "{scheme} is dead reckoning from a known start (the walk's first waypoint), and walk {} has no waypoints",
                         walk.meta.id
                     ),
-                },
+                )),
             ));
         };
         Some((w.t, w.position))

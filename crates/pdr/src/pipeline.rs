@@ -134,20 +134,11 @@ impl Default for PdrConfig {
     }
 }
 
-/// A PDR setting out of range: `field` is the path under `[pdr]`.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("pdr.{field}: {reason}")]
-pub struct PdrConfigError {
-    /// Dotted path under the PDR config (`min_step_length`, `detector.window_s`).
-    pub field: &'static str,
-    /// What is wrong, with the value given.
-    pub reason: String,
-}
-
 impl PdrConfig {
     /// Checks the values a config file could get wrong (NaN, negative, inverted limits).
-    pub fn validate(&self) -> Result<(), PdrConfigError> {
-        let bad = |field, reason| Err(PdrConfigError { field, reason });
+    /// Errors name the field's path under the PDR config (`detector.window_s`).
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
+        let bad = |field: &str, reason: String| Err(wipdr_core::ConfigError::new(field, reason));
         let (lo, hi) = (self.min_step_length, self.max_step_length);
         if !(lo.is_finite() && lo >= 0.0) {
             return bad(
@@ -161,9 +152,7 @@ impl PdrConfig {
                 format!("must be finite and >= min_step_length ({lo}), got {hi}"),
             );
         }
-        if let Err((field, reason)) = self.handling.validate() {
-            return bad(field, reason);
-        }
+        self.handling.validate()?;
         let d = &self.detector;
         for (field, v) in [
             ("detector.window_s", d.window_s),
@@ -189,9 +178,7 @@ impl PdrConfig {
                 format!("must be finite, got {}", self.heading.map_offset_rad),
             );
         }
-        if let Err((field, reason)) = self.heading.snap.validate() {
-            return bad(field, reason);
-        }
+        self.heading.snap.validate()?;
         Ok(())
     }
 
@@ -711,11 +698,11 @@ mod config_tests {
             max_step_length: 0.5,
             ..PdrConfig::default()
         };
-        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "max_step_length");
         c.max_step_length = f64::NAN;
-        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "max_step_length");
         c.min_step_length = f64::NAN;
-        assert_eq!(c.validate().unwrap_err().field, "min_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "min_step_length");
     }
 
     #[test]
@@ -723,26 +710,26 @@ mod config_tests {
         let mut c = PdrConfig::default();
         c.handling.release_rad_s = Some(3.5);
         let e = c.validate().unwrap_err();
-        assert_eq!(e.field, "handling.release_rad_s");
+        assert_eq!(e.path, "handling.release_rad_s");
         assert!(e.reason.contains("3.5"), "{}", e.reason);
         c.handling.release_rad_s = Some(1.5);
         assert!(c.validate().is_ok());
         c.handling.release_rad_s = Some(f64::NAN);
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_rad_s");
         c.handling.release_rad_s = Some(-1.0);
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_rad_s");
         c.handling.release_rad_s = None;
         c.handling.release_hold_s = f64::INFINITY;
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_hold_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_hold_s");
         c.handling.release_hold_s = 4.0;
         c.handling.max_axis_share = 0.0;
-        assert_eq!(c.validate().unwrap_err().field, "handling.max_axis_share");
+        assert_eq!(c.validate().unwrap_err().path, "handling.max_axis_share");
         c.handling.max_axis_share = 0.85;
         c.handling.tumbling_rad_s = Some(f64::NAN);
-        assert_eq!(c.validate().unwrap_err().field, "handling.tumbling_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.tumbling_rad_s");
         c.handling.tumbling_rad_s = Some(1.5);
         c.handling.axis_window_s = 0.0;
-        assert_eq!(c.validate().unwrap_err().field, "handling.axis_window_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.axis_window_s");
         // Gate off: a release is accepted (it is not used).
         c.handling = crate::handling::HandlingConfig::off();
         c.handling.release_rad_s = Some(2.0);

@@ -63,35 +63,27 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
 fn read_checked<T, F>(path: Option<&Path>, check: F) -> Result<T>
 where
     T: Default + serde::de::DeserializeOwned,
-    F: FnOnce(&T) -> Option<(String, String)>,
+    F: FnOnce(&T) -> Result<(), wipdr_core::ConfigError>,
 {
     let Some(path) = path else {
         return Ok(T::default());
     };
     let cfg: T = read_config(path)?;
-    if let Some((field, reason)) = check(&cfg) {
-        anyhow::bail!("{}: {field}: {reason}", path.display());
+    if let Err(e) = check(&cfg) {
+        anyhow::bail!("{}: {e}", path.display());
     }
     Ok(cfg)
 }
 
 /// The PDR config of `path` (defaults without one), checked by [`PdrConfig::validate`].
 pub(crate) fn read_pdr_config(path: Option<&Path>) -> Result<PdrConfig> {
-    read_checked(path, |cfg: &PdrConfig| {
-        cfg.validate()
-            .err()
-            .map(|e| (e.field.to_string(), e.reason.to_string()))
-    })
+    read_checked(path, PdrConfig::validate)
 }
 
 /// The calibration settings of `path` (defaults without one), checked by
 /// [`CalibrationConfig::validate`].
 pub(crate) fn read_calibration(path: Option<&Path>) -> Result<CalibrationConfig> {
-    read_checked(path, |cal: &CalibrationConfig| {
-        cal.validate()
-            .err()
-            .map(|(field, reason)| (field.to_string(), reason.to_string()))
-    })
+    read_checked(path, CalibrationConfig::validate)
 }
 
 /// Reads floor folders (through the cache of this run, `--cache-dir` / `--no-cache`).

@@ -1,6 +1,7 @@
 //! The config of `pmf` and its checks.
 
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 
 use crate::FusionError;
 
@@ -227,10 +228,10 @@ impl PointMassConfig {
         ];
         for (field, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and > 0, got {v}"),
-                });
+                    format!("must be finite and > 0, got {v}"),
+                )));
             }
         }
         let non_negative = [
@@ -251,55 +252,55 @@ impl PointMassConfig {
         let lattices =
             self.heading_hypotheses_deg.len().max(1) * self.step_scale_hypotheses.len().max(1);
         if lattices > super::mixture::MAX_HEADING_HYPOTHESES {
-            return Err(FusionError::InvalidConfig {
-                field: if self.step_scale_hypotheses.is_empty() {
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                if self.step_scale_hypotheses.is_empty() {
                     "heading_hypotheses_deg"
                 } else {
                     "step_scale_hypotheses"
                 },
-                reason: format!(
+                format!(
                     "at most {} hypotheses (heading x step scale), got {} x {}",
                     super::mixture::MAX_HEADING_HYPOTHESES,
                     self.heading_hypotheses_deg.len().max(1),
                     self.step_scale_hypotheses.len().max(1)
                 ),
-            });
+            )));
         }
         if let Some(k) = self
             .step_scale_hypotheses
             .iter()
             .find(|k| !(k.is_finite() && (0.5..=2.0).contains(*k)))
         {
-            return Err(FusionError::InvalidConfig {
-                field: "step_scale_hypotheses",
-                reason: format!("every entry must be within [0.5, 2], got {k}"),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "step_scale_hypotheses",
+                format!("every entry must be within [0.5, 2], got {k}"),
+            )));
         }
         if let Some(h) = self
             .heading_hypotheses_deg
             .iter()
             .find(|h| !(h.is_finite() && h.abs() <= 180.0))
         {
-            return Err(FusionError::InvalidConfig {
-                field: "heading_hypotheses_deg",
-                reason: format!("every entry must be within [-180, 180], got {h}"),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "heading_hypotheses_deg",
+                format!("every entry must be within [-180, 180], got {h}"),
+            )));
         }
         if !(self.heading_offset_deg.is_finite() && self.heading_offset_deg.abs() <= 180.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "heading_offset_deg",
-                reason: format!(
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "heading_offset_deg",
+                format!(
                     "must be within [-180, 180], got {}",
                     self.heading_offset_deg
                 ),
-            });
+            )));
         }
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and >= 0, got {v}"),
-                });
+                    format!("must be finite and >= 0, got {v}"),
+                )));
             }
         }
         let probabilities = [
@@ -312,20 +313,18 @@ impl PointMassConfig {
         ];
         for (field, v) in probabilities {
             if !(v.is_finite() && v > 0.0 && v <= 1.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be in (0, 1], got {v}"),
-                });
+                    format!("must be in (0, 1], got {v}"),
+                )));
             }
         }
-        for (field, v) in [
-            ("likelihood_share", self.likelihood_share),
-        ] {
+        for (field, v) in [("likelihood_share", self.likelihood_share)] {
             if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be in [0, 1], got {v}"),
-                });
+                    format!("must be in [0, 1], got {v}"),
+                )));
             }
         }
         self.radius.validate()

@@ -80,6 +80,7 @@ mod smoother;
 mod tests;
 
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 
 use wipdr_core::{GridError, GridSpec, Point2, TimestampMs, Vector2};
 
@@ -152,10 +153,7 @@ const NO_CELL: usize = usize::MAX;
 
 /// A raster look-up error as a config error of `field`.
 fn grid_error(field: &'static str, what: &'static str) -> impl Fn(GridError) -> FusionError {
-    move |e| FusionError::InvalidConfig {
-        field,
-        reason: format!("{what}: {e}"),
-    }
+    move |e| FusionError::InvalidConfig(ConfigError::new(field, format!("{what}: {e}")))
 }
 
 impl PointMassFilter {

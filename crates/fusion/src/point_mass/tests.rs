@@ -676,7 +676,7 @@ fn too_many_hypotheses_are_refused_naming_the_field() {
         ..PointMassConfig::default()
     };
     match cfg.validate() {
-        Err(FusionError::InvalidConfig { field, .. }) => assert_eq!(field, "step_scale_hypotheses"),
+        Err(FusionError::InvalidConfig(e)) => assert_eq!(e.path, "step_scale_hypotheses"),
         other => panic!("{other:?}"),
     }
     let cfg = PointMassConfig {
