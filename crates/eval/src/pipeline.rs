@@ -22,7 +22,7 @@ use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::TrailRaster;
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr};
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
 use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
@@ -202,7 +202,7 @@ impl PreparedWalk {
 }
 
 /// Steps of `walk` under `cfg`.
-pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
+pub fn steps_of(cfg: &CheckedPdrConfig, walk: &Walk) -> Vec<StepEvent> {
     Pdr::run(*cfg, walk)
 }
 

@@ -134,7 +134,57 @@ impl Default for PdrConfig {
     }
 }
 
+/// A [`PdrConfig`] whose values passed [`PdrConfig::validate`]: the only form [`Pdr`] is
+/// built from, so a config read from a file reaches the pipeline checked or not at all (the
+/// checked/unchecked split of linfa's `ParamGuard`). Read it through `Deref`; make it with
+/// [`PdrConfig::check`], or take the defaults (valid: a unit test holds them).
+///
+/// ```
+/// use wipdr_pdr::{CheckedPdrConfig, PdrConfig};
+/// let bad = PdrConfig { min_step_length: f64::NAN, ..PdrConfig::default() };
+/// assert_eq!(bad.check().unwrap_err().path, "min_step_length");
+/// let good: CheckedPdrConfig = PdrConfig::default().check().unwrap();
+/// assert_eq!(good.max_step_length, PdrConfig::default().max_step_length);
+/// assert_eq!(good, CheckedPdrConfig::default());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckedPdrConfig(PdrConfig);
+
+impl CheckedPdrConfig {
+    /// The config inside.
+    pub fn into_inner(self) -> PdrConfig {
+        self.0
+    }
+}
+
+impl Default for CheckedPdrConfig {
+    /// [`PdrConfig::default`], which validates.
+    fn default() -> Self {
+        Self(PdrConfig::default())
+    }
+}
+
+impl std::ops::Deref for CheckedPdrConfig {
+    type Target = PdrConfig;
+    fn deref(&self) -> &PdrConfig {
+        &self.0
+    }
+}
+
+impl TryFrom<PdrConfig> for CheckedPdrConfig {
+    type Error = wipdr_core::ConfigError;
+    fn try_from(cfg: PdrConfig) -> Result<Self, Self::Error> {
+        cfg.check()
+    }
+}
+
 impl PdrConfig {
+    /// The config as [`Pdr`] takes it, once [`PdrConfig::validate`] passes.
+    pub fn check(self) -> Result<CheckedPdrConfig, wipdr_core::ConfigError> {
+        self.validate()?;
+        Ok(CheckedPdrConfig(self))
+    }
+
     /// Checks the values a config file could get wrong (NaN, negative, inverted limits).
     /// Errors name the field's path under the PDR config (`detector.window_s`).
     pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
@@ -343,8 +393,9 @@ fn finite3(v: &[f64; 3]) -> bool {
 }
 
 impl Pdr {
-    /// A pipeline at rest.
-    pub fn new(cfg: PdrConfig) -> Self {
+    /// A pipeline at rest, on a checked config ([`PdrConfig::check`]).
+    pub fn new(cfg: CheckedPdrConfig) -> Self {
+        let cfg = cfg.into_inner();
         Self {
             detector: StepDetector::new(cfg.detector),
             gyro_att: GyroAttitude::new(cfg.heading.gyro),
@@ -630,7 +681,7 @@ impl Pdr {
     /// Runs the pipeline over a whole walk (streams merged in time order; at equal times the
     /// rotation vector, gyroscope and magnetometer come before the accelerometer, so a step
     /// sees the orientation of its own instant). Returns every step with its details.
-    pub fn run_detailed(cfg: PdrConfig, walk: &Walk) -> (Vec<StepDetail>, PdrDiagnostics) {
+    pub fn run_detailed(cfg: CheckedPdrConfig, walk: &Walk) -> (Vec<StepDetail>, PdrDiagnostics) {
         let mut pdr = Pdr::new(cfg);
         let imu = &walk.imu;
         let (acc, gyr, mag, rv) = (
@@ -672,11 +723,11 @@ impl Pdr {
     /// Runs the pipeline over a whole walk and returns its step events.
     ///
     /// ```
-    /// use wipdr_pdr::{Pdr, PdrConfig};
+    /// use wipdr_pdr::{CheckedPdrConfig, Pdr};
     /// let walk = wipdr_core::Walk::default();
-    /// assert!(Pdr::run(PdrConfig::default(), &walk).is_empty());
+    /// assert!(Pdr::run(CheckedPdrConfig::default(), &walk).is_empty());
     /// ```
-    pub fn run(cfg: PdrConfig, walk: &Walk) -> Vec<StepEvent> {
+    pub fn run(cfg: CheckedPdrConfig, walk: &Walk) -> Vec<StepEvent> {
         Self::run_detailed(cfg, walk)
             .0
             .into_iter()

@@ -20,7 +20,7 @@ use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
 use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
 use wipdr_pdr::odometry::{self, LearnedOdometry, OdometryStream};
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr};
 
 /// The largest device RSS offset the likelihood's online estimate may reach, dB (phones
 /// differ from one another by up to about 10-15 dB).
@@ -146,7 +146,7 @@ impl std::fmt::Debug for Frontend {
 
 impl Frontend {
     /// A front end over a built matcher, with the default [`FloorConfig`].
-    pub fn new(pdr: PdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
+    pub fn new(pdr: CheckedPdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
         Self::with_floor_config(pdr, matcher, FloorConfig::default())
     }
 
@@ -156,7 +156,7 @@ impl Frontend {
     /// ([`WifiObservation::on_floor`]; a fix with none there is dropped and counted) unless
     /// [`FloorConfig::fixes_across_floors`].
     pub fn with_floor_config(
-        pdr: PdrConfig,
+        pdr: CheckedPdrConfig,
         matcher: Box<dyn OnlineMatcher>,
         floor: FloorConfig,
     ) -> Self {
@@ -600,7 +600,7 @@ impl Positioner {
         }
         Ok(Self {
             frontend: Frontend::with_floor_config(
-                config.pdr,
+                config.pdr.check().map_err(|e| e.under("pdr"))?,
                 matcher.stream(config.query),
                 config.floor,
             )

@@ -103,9 +103,12 @@ pub(crate) fn read_floors(dirs: &[PathBuf]) -> Result<Vec<FloorData>> {
 }
 
 /// Runs `cfg` over every walk of a floor (parallel), with folds.
-pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
+pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Result<Vec<WalkRun>> {
+    let cfg = cfg
+        .check()
+        .map_err(|e| anyhow::anyhow!("PDR config: {e}"))?;
     let walks: Vec<&wipdr_core::Walk> = floor.walks.iter().map(|w| &w.walk).collect();
-    run_walks(&walks, cfg)
+    Ok(run_walks(&walks, &cfg))
 }
 
 /// Median and p90 of absolute values.
@@ -221,8 +224,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut steps_info = BTreeMap::new();
     let pb = crate::progress::bar(floors.len() as u64, "floors");
     for floor in &floors {
-        let base_runs = run_floor(floor, &base_cfg);
-        let runs = run_floor(floor, &cfg);
+        let base_runs = run_floor(floor, &base_cfg)?;
+        let runs = run_floor(floor, &cfg)?;
         steps_info.insert(
             floor.name.clone(),
             (runs.iter().map(|r| r.steps.len()).sum(), runs.len()),
