@@ -517,3 +517,88 @@ def ipin_routes(runs):
                      f"{100 * sum(c >= 6 for c in coverage) / len(coverage):.0f} %"])
     return rows(["route", "walks", "points", f"`{scheme}` mean", "share of the summed error",
                  "distance to coverage, median m", "points 6 m or more from coverage"], body)
+
+
+# ---------------------------------------------------------------- site-model.md
+
+
+@table("eval-site-model", measured=True)
+def site_model(runs):
+    """Site model files: points, APs, fit time, size, load time (site-model.md; measured)."""
+    out = runs.command(["bash", "-c", "cargo bench -p wipdr-benches --bench site_model 2>&1"])
+    fits = {m.group(1): m.groups()[1:] for m in re.finditer(
+        r"site_model: (.+?): fit ([\d.]+) s, file ([\d.]+) MB \((\d+) points, (\d+) APs\)", out)}
+    loads = {m.group(1).strip(): f"{float(m.group(2)):.0f} {m.group(3)}" for m in re.finditer(
+        r"site_model_load/([^\n]+?)\s+time:\s+\[\S+ \S+ ([\d.]+) (\S+)", out)}
+    names = {"ipin trials": "IPIN 2023, 29 logfiles"}
+    body = []
+    for name, (fit_s, mb, points, aps) in fits.items():
+        place = names.get(name, name.replace("ilc ", "ILC "))
+        body.append([place, n_(int(points)), n_(int(aps)), f"{fit_s} s", f"{mb} MB", loads.get(name, "-")])
+    return rows(["place", "reference points", "APs", "fit", "file", "load (criterion estimate)"], body)
+
+
+# ---------------------------------------------------------------- propagation.md
+
+
+def propagation_example(runs):
+    """`cargo run --release -p wipdr-eval --example propagation`, parsed: per floor, the
+    uncensored fit's figures and its leave-out checks."""
+    out = runs.command(["cargo", "run", "--release", "-q", "-p", "wipdr-eval", "--example", "propagation"])
+    floors = {}
+    for block in re.split(r"^== ", out, flags=re.M)[1:]:
+        name = block.split(" ", 1)[0]
+        head = re.match(r"\S+ \(fold 0 training map\): (\d+) reference points, (\d+) APs", block)
+        plain = block.split("-- censored_weight 1")[0]
+        fit = re.search(r"fit: (\d+) models, dropped: (\d+) too few samples, \d+ degenerate, "
+                        r"\d+ not finite, (\d+) rmse > (\d+) dB", plain)
+        med = re.search(r"median rmse ([\d.]+) dB, median exponent ([\d.]+)", plain)
+        fifth = re.search(r"leave-out every 5th point:.*?mean \|err\| model ([\d.]+) dB, "
+                          r"nearest-kept-hearing-point baseline ([\d.]+) dB", plain, re.S)
+        band = plain[plain.index("leave-out band"):]
+        bins = {m.group(1): (m.group(2), m.group(3)) for m in re.finditer(
+            r"nearest kept hearing point\s+(\d+-\d+)\s+m:\s+\d+ entries, model ([\d.]+) dB, "
+            r"baseline ([\d.]+) dB", band)}
+        heard = re.search(r"heard set at >= -85 dBm: [\d.]+ predicted / [\d.]+ heard APs per point "
+                          r"\(trusted models\), precision ([\d.]+), recall ([\d.]+)", plain)
+        floors[name] = dict(points=int(head.group(1)), aps=int(head.group(2)), models=int(fit.group(1)),
+                            few=int(fit.group(2)), bad=int(fit.group(3)), bad_db=fit.group(4),
+                            rmse=med.group(1), exponent=med.group(2), fifth=fifth.groups(),
+                            band=bins, heard85=heard.groups())
+    return floors
+
+
+def better_pair(model, baseline):
+    m, b = float(model), float(baseline)
+    return bold(f"{model} dB", m < b), bold(f"{baseline} dB", b < m)
+
+
+@table("eval-propagation-fit")
+def propagation_fit(runs):
+    """Per coverage-gap floor, the path-loss models fit on fold 0's training map (propagation.md)."""
+    body = []
+    for name, f in propagation_example(runs).items():
+        body.append([name, n_(f["points"]), n_(f["aps"]), n_(f["models"]), n_(f["few"]),
+                     f"{n_(f['bad'])} (> {f['bad_db']} dB)", f"{f['rmse']} dB", f["exponent"],
+                     f"{f['heard85'][0]} / {f['heard85'][1]}"])
+    return rows(["floor", "training points", "APs", "models", "too few samples", "fit too poor",
+                 "median fit RMSE", "median exponent", "heard at >= -85 dBm: precision / recall"], body)
+
+
+@table("eval-propagation-leave-out")
+def propagation_leave_out(runs):
+    """Mean absolute RSS error on held-out fingerprints, model against the nearest value
+    (propagation.md)."""
+    floors = propagation_example(runs)
+    body = []
+    for label_, pick in (("every 5th fingerprint (mostly 0-8 m from the rest)", lambda f: f["fifth"]),
+                         ("a 20 m band across the floor, entries 8-14 m from data", lambda f: f["band"]["8-14"]),
+                         ("the same band, 14-20 m from data", lambda f: f["band"]["14-20"])):
+        row = [label_]
+        for f in floors.values():
+            row += better_pair(*pick(f))
+        body.append(row)
+    header = ["held out"]
+    for name in floors:
+        header += [f"{name} model", f"{name} nearest value"]
+    return rows(header, body)
