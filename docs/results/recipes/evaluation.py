@@ -528,7 +528,8 @@ def site_model(runs):
     out = runs.command(["bash", "-c", "cargo bench -p wipdr-benches --bench site_model 2>&1"])
     fits = {m.group(1): m.groups()[1:] for m in re.finditer(
         r"site_model: (.+?): fit ([\d.]+) s, file ([\d.]+) MB \((\d+) points, (\d+) APs\)", out)}
-    loads = {m.group(1).strip(): f"{float(m.group(2)):.0f} {m.group(3)}" for m in re.finditer(
+    to_ms = {"s": 1000.0, "ms": 1.0, "µs": 0.001, "us": 0.001}
+    loads = {m.group(1).strip(): f"{float(m.group(2)) * to_ms[m.group(3)]:,.0f} ms" for m in re.finditer(
         r"site_model_load/([^\n]+?)\s+time:\s+\[\S+ \S+ ([\d.]+) (\S+)", out)}
     names = {"ipin trials": "IPIN 2023, 29 logfiles"}
     body = []
