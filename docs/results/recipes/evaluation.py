@@ -274,7 +274,7 @@ def radius_by_coverage(doc, scheme):
 
 @table("eval-radius-coverage")
 def radius_coverage(runs):
-    """The best causal scheme's 95 % radius by the truth's distance to coverage (accuracy.md)."""
+    """`pmf`'s 95 % radius by the truth's distance to coverage (accuracy.md)."""
     c, i = ilc(runs), ipin(runs)
     s = "pmf"
     (bc, mc), (bi, mi) = radius_by_coverage(c, s), radius_by_coverage(i, s)
@@ -499,7 +499,7 @@ def uninformed_walks(runs):
 
 @table("eval-ipin-routes")
 def ipin_routes(runs):
-    """The best causal scheme's IPIN error by route (ipin.md; the computation of
+    """`pmf`'s IPIN error by route (ipin.md; the computation of
     docs/results/errors_by_route.py)."""
     d, scheme = ipin(runs), "pmf"
     routes = {}
