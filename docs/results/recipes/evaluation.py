@@ -471,24 +471,13 @@ def static_start(runs):
 def uninformed_walks(runs):
     """The walks whose every scored Wi-Fi error is 15 m or more, offline `pmf` (accuracy.md;
     docs/results/uninformed_walks.py's computation)."""
-    d, scheme, min_m = ilc(runs, True), "pmf", 15.0
-    key = lambda w: (w["floor"], w["walk"])
-    wifi = {key(w): w for w in d["walks"] if w["scheme"] == "wifi"}
-    fused = [w for w in d["walks"] if w["scheme"] == scheme and w["errors"]]
-    total = sum(e[1] for w in fused for e in w["errors"])
-    points = sum(len(w["errors"]) for w in fused)
-    out_sum, out_points, out_walks, body = 0.0, 0, 0, []
-    for w in sorted(fused, key=lambda w: -sum(e[1] for e in w["errors"])):
-        f = wifi.get(key(w))
-        if f is None or not f["errors"] or min(e[1] for e in f["errors"]) < min_m:
-            continue
-        s = sum(e[1] for e in w["errors"])
-        out_sum += s
-        out_points += len(w["errors"])
-        out_walks += 1
-        wifi_mean = sum(e[1] for e in f["errors"]) / len(f["errors"])
-        body.append([floor_name(w["floor"]), w["walk"][:8], n_(len(w["errors"])), f"{wifi_mean:.1f}",
-                     f"{s / len(w['errors']):.1f}"])
+    from uninformed_walks import uninformed
+
+    scheme = "pmf"
+    walks, total, points = uninformed(ilc(runs, True), scheme, 15.0)
+    out_sum, out_points, out_walks = sum(w[4] for w in walks), sum(w[2] for w in walks), len(walks)
+    body = [[floor_name(floor), walk[:8], n_(n), f"{wifi_mean:.1f}", f"{s / n:.1f}"]
+            for floor, walk, n, wifi_mean, s in walks]
     body.append([f"these {out_walks} walks", f"{100 * out_sum / total:.1f} % of the summed error",
                  n_(out_points), "", f"{out_sum / out_points:.2f}"])
     body.append(["every other walk", "", n_(points - out_points), "",
