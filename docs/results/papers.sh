@@ -160,7 +160,7 @@ PY
 # The tables are a recipe of docs/results/regenerate.py (docs/results/recipes/comp_papers.py):
 # the same default and tuned evaluations, rewritten between the markers of papers.md.
 tables() {
-    WIPDR="$WIPDR" SCHEMES="$SCHEMES" python3 docs/results/regenerate.py --only papers.md
+    WIPDR="$WIPDR" PAPERS_SCHEMES="$SCHEMES" python3 docs/results/regenerate.py --only papers.md
 }
 
 case "$mode" in

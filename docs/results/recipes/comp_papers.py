@@ -8,7 +8,7 @@ from regenerate import ROOT, ilc_floors, table
 
 from comp_common import config_file
 
-SCHEMES = os.environ.get("SCHEMES", "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf")
+SCHEMES = os.environ.get("PAPERS_SCHEMES", "wifi,pdr,ekf,aekf,akf,rkf,arkf,aws,tcpf,pf,apf,rof,pmf")
 # Schemes with a tuning sweep docs/sweeps/tune-<name>.toml (apf-med: MED + APF), as papers.sh.
 TUNED = ["ekf", "aekf", "akf", "rkf", "arkf", "aws", "tcpf", "rof", "pf", "apf"]
 MED_BASE = "docs/sweeps/med2-base.toml"
