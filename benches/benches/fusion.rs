@@ -130,7 +130,7 @@ fn real_walk() -> Option<RealWalk> {
         max_age_ms: cfg.max_entry_age_ms,
         ..QueryFilter::default()
     };
-    let steps = wipdr_pdr::Pdr::run(wipdr_pdr::PdrConfig::default(), &test.walk);
+    let steps = wipdr_pdr::Pdr::run(wipdr_pdr::CheckedPdrConfig::default(), &test.walk);
     let obs = test
         .walk
         .wifi

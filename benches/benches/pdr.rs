@@ -11,7 +11,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
 use wipdr_core::Walk;
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr};
 
 fn real_walk() -> Option<Walk> {
     let dir = match wipdr_io::real_data("ilc20/site1/F1/path_data_files") {
@@ -59,7 +59,7 @@ fn bench_pdr(c: &mut Criterion) {
             walk.duration_s(),
             walk.imu.accelerometer.len()
         );
-        let cfg = PdrConfig::default();
+        let cfg = CheckedPdrConfig::default();
         group.bench_function(name.as_str(), |b| {
             b.iter(|| black_box(Pdr::run_detailed(cfg, black_box(walk))))
         });

@@ -9,6 +9,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 use wipdr_core::Floor as CoreFloor;
 use wipdr_eval::fold_model::FoldModel;
 use wipdr_eval::pipeline::{self, FloorInput};
@@ -89,19 +90,21 @@ pub fn evaluate(
             let report = pipeline::evaluate(&floors, &cfg, &schemes, &|| {})?;
             let unscored = report.unscored_schemes();
             if !unscored.is_empty() {
-                return Err(wipdr_eval::pipeline::EvalError::InvalidConfig {
-                    path: "schemes".into(),
-                    reason: format!(
-                        "no waypoint was scored for {} (empty test set, no matched query, or \
+                return Err(wipdr_eval::pipeline::EvalError::InvalidConfig(
+                    ConfigError::new(
+                        "schemes",
+                        format!(
+                            "no waypoint was scored for {} (empty test set, no matched query, or \
                          a scoring start beyond every waypoint)",
-                        unscored.join(", ")
+                            unscored.join(", ")
+                        ),
                     ),
-                });
+                ));
             }
             Ok(report.to_json(&cfg).to_string())
         })
         .map_err(|e| match e {
-            wipdr_eval::pipeline::EvalError::InvalidConfig { path, reason }
+            wipdr_eval::pipeline::EvalError::InvalidConfig(ConfigError { path, reason })
                 if path == "schemes" =>
             {
                 input_error(reason)

@@ -55,7 +55,7 @@ fn main() {
             skipped += 1;
             continue;
         };
-        let (steps, _) = Pdr::run_detailed(pdr_cfg, &walk);
+        let (steps, _) = Pdr::run_detailed(pdr_cfg.check().unwrap(), &walk);
         let gyro = &walk.imu.gyroscope;
         let mut gates = vec![HandlingGate::default(); variants.len()];
         let mut next = 0;

@@ -40,7 +40,7 @@ pub mod survey;
 pub mod walk;
 pub mod wifi;
 
-pub use error::CoreError;
+pub use error::{ConfigError, CoreError};
 pub use evaal::{EvaalEstimate, EvaalTruthPoint};
 pub use fingerprint_table::{FingerprintLabel, FingerprintTable};
 pub use floor::{FloorPlan, Polygon, Segment, Unit};

@@ -368,38 +368,35 @@ impl EvalConfig {
 
     /// Checks values that serde cannot (errors name the field path).
     pub fn validate(&self) -> Result<(), EvalError> {
-        let invalid = |path: &str, reason: String| EvalError::InvalidConfig {
-            path: path.to_string(),
-            reason,
-        };
+        use wipdr_core::ConfigError;
+        use wipdr_fingerprint::FingerprintError;
+        let invalid = |path: &str, reason: String| EvalError::from(ConfigError::new(path, reason));
         self.positioner.validate().map_err(|e| match e {
-            wipdr_positioning::PositioningError::InvalidConfig { path, reason } => {
-                invalid(&path, reason)
-            }
+            wipdr_positioning::PositioningError::InvalidConfig(e) => EvalError::from(e),
             other => invalid("", other.to_string()),
         })?;
         let fit = &self.fit;
-        if let Err((field, reason)) = fit.calibration.validate() {
-            return Err(invalid(&format!("calibration.{field}"), reason));
-        }
-        if let Err((field, reason)) = self.positioner.query.validate_fields() {
-            return Err(invalid(&format!("query.{field}"), reason));
-        }
-        if let Err((field, reason)) = fit.radio_map.validate_fields() {
-            return Err(invalid(&format!("radio_map.{field}"), reason));
-        }
+        fit.calibration
+            .validate()
+            .map_err(|e| e.under("calibration"))?;
+        self.positioner
+            .query
+            .validate_fields()
+            .map_err(|e| e.under("query"))?;
+        fit.radio_map
+            .validate_fields()
+            .map_err(|e| e.under("radio_map"))?;
         if let Some(i) = &fit.radio_map.interpolation {
             i.validate()
-                .map_err(|e| invalid("radio_map.interpolation", e.to_string()))?;
+                .map_err(|e| e.into_config_error().under("radio_map.interpolation"))?;
         }
         if let Some(p) = &fit.propagation {
-            p.validate()
-                .map_err(|e| invalid("propagation", e.to_string()))?;
+            p.validate().map_err(FingerprintError::into_config_error)?;
         }
         for (name, scheme) in &self.schemes {
             scheme
                 .validate()
-                .map_err(|e| invalid(&format!("schemes.{name}"), e.to_string()))?;
+                .map_err(|e| e.into_config_error().under(&format!("schemes.{name}")))?;
         }
         let not_heard = fit.radio_map.radio.not_heard_dbm;
         if !(not_heard.is_finite() && (-200.0..=-30.0).contains(&not_heard)) {
@@ -419,8 +416,7 @@ impl EvalConfig {
             ));
         }
         if let Some(ss) = &self.positioner.static_start {
-            ss.validate()
-                .map_err(|e| invalid("static_start", e.to_string()))?;
+            ss.validate().map_err(|e| e.into_config_error())?;
         }
         Ok(())
     }
@@ -656,7 +652,7 @@ pub(crate) mod tests {
         for (text, path) in [
             (
                 "[schemes.ekf]\nscheme = \"ekf\"\nr_wifi_m2 = -3.0",
-                "schemes.ekf",
+                "schemes.ekf.r_wifi_m2",
             ),
             (
                 "[pdr]\nmin_step_length = 1.0\nmax_step_length = 0.5",
@@ -673,7 +669,7 @@ pub(crate) mod tests {
             ("[matcher]\nkind = \"med\"\nwindow = 0", "matcher.window"),
             (
                 "[schemes.pf]\nscheme = \"pf\"\nn_particles = 1000000000",
-                "n_particles",
+                "schemes.pf.n_particles",
             ),
             ("score_first_m = -1.0", "score_first_m"),
         ] {

@@ -310,7 +310,7 @@ pub fn grid_cross_validated(
 ) -> Result<Vec<GridPoint>, FingerprintError> {
     if folds < 2 {
         return Err(FingerprintError::InvalidConfig(
-            "need at least 2 folds".into(),
+            wipdr_core::ConfigError::new("folds", "need at least 2 folds"),
         ));
     }
     let n = train.len();

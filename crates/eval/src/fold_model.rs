@@ -131,7 +131,10 @@ impl FoldModel {
     ) -> Result<PreparedWalk, EvalError> {
         let config = self.model.config();
         let mut frontend = Frontend::with_floor_config(
-            config.pdr,
+            config
+                .pdr
+                .check()
+                .map_err(|e| EvalError::from(e.under("pdr")))?,
             self.model.matcher().stream(cfg.positioner.query),
             config.floor,
         )

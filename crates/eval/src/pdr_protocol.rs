@@ -14,7 +14,7 @@ use wipdr_core::{TimestampMs, Walk, Waypoint};
 use wipdr_pdr::calibrate::{
     CalibrationConfig, WalkSteps, dead_reckon_at_waypoints, leg_errors, track,
 };
-use wipdr_pdr::{HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
+use wipdr_pdr::{CheckedPdrConfig, HeadingSource, Pdr, PdrConfig, StepDetail, StepLengthConfig};
 
 /// One walk run through the PDR pipeline.
 #[derive(Debug, Clone)]
@@ -33,7 +33,7 @@ pub struct WalkRun {
 
 /// Runs `cfg` over the walks of one floor (parallel); folds as the evaluation's
 /// ([`crate::fold_rules::folds_of_walk_refs`]: by route where walks have routes, else by id).
-pub fn run_walks(walks: &[&Walk], cfg: &PdrConfig) -> Vec<WalkRun> {
+pub fn run_walks(walks: &[&Walk], cfg: &CheckedPdrConfig) -> Vec<WalkRun> {
     let (folds, _) = folds_of_walk_refs(walks);
     walks
         .par_iter()
@@ -259,7 +259,7 @@ mod tests {
     fn calibration_on_runs_equals_the_pipeline_calibration() {
         let walks = fixture_walks();
         let refs: Vec<&Walk> = walks.iter().collect();
-        let base = PdrConfig::default();
+        let base = CheckedPdrConfig::default();
         let cal = CalibrationConfig::default();
         let runs = run_walks(&refs, &base);
         let train: Vec<&Walk> = refs
@@ -277,7 +277,7 @@ mod tests {
     #[test]
     fn snapped_headings_match_the_snapped_track() {
         let walks = fixture_walks();
-        let runs = run_walks(&[&walks[0]], &PdrConfig::default());
+        let runs = run_walks(&[&walks[0]], &CheckedPdrConfig::default());
         let snap = wipdr_pdr::snap::HeadingSnapConfig {
             enabled: true,
             threshold_deg: 45.0,
@@ -302,7 +302,7 @@ mod tests {
     #[test]
     fn shift_turns_only_the_chosen_source() {
         let walks = fixture_walks();
-        let runs = run_walks(&[&walks[0]], &PdrConfig::default());
+        let runs = run_walks(&[&walks[0]], &CheckedPdrConfig::default());
         let s = runs[0].steps[0];
         let t = shift_heading(&s, HeadingSource::Gyro, 0.5);
         assert_eq!(t.headings.rotation_vector, s.headings.rotation_vector);

@@ -22,7 +22,7 @@ use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::TrailRaster;
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr};
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
 use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
@@ -71,14 +71,9 @@ pub enum EvalError {
         /// What is wrong, with the field path.
         reason: String,
     },
-    /// A config value is out of range.
-    #[error("{path}: {reason}")]
-    InvalidConfig {
-        /// Dotted path of the field.
-        path: String,
-        /// What is wrong, with the value given.
-        reason: String,
-    },
+    /// A config value is out of range: the field's dotted path and what is wrong.
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// The positioning pipeline could not be built.
     #[error("floor {floor}: {source}")]
     Positioning {
@@ -207,7 +202,7 @@ impl PreparedWalk {
 }
 
 /// Steps of `walk` under `cfg`.
-pub fn steps_of(cfg: &PdrConfig, walk: &Walk) -> Vec<StepEvent> {
+pub fn steps_of(cfg: &CheckedPdrConfig, walk: &Walk) -> Vec<StepEvent> {
     Pdr::run(*cfg, walk)
 }
 
@@ -486,13 +481,13 @@ pub fn locate_walk(
     let start = if scheme_cfg.name() == "pdr" {
         let Some(w) = walk.waypoints.first() else {
             return Err(SiteModelError::Positioning(
-                wipdr_positioning::PositioningError::InvalidConfig {
-                    path: "scheme".into(),
-                    reason: format!(
+                wipdr_positioning::PositioningError::InvalidConfig(wipdr_core::ConfigError::new(
+                    "scheme",
+                    format!(
                         "{scheme} is dead reckoning from a known start (the walk's first waypoint), and walk {} has no waypoints",
                         walk.meta.id
                     ),
-                },
+                )),
             ));
         };
         Some((w.t, w.position))

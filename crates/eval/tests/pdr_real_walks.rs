@@ -33,12 +33,12 @@ fn calibrated_pdr_beats_sample_code_on_site2_f3() {
     let base: Vec<_> = floor
         .walks
         .iter()
-        .map(|w| Pdr::run_detailed(base_cfg, &w.walk).0)
+        .map(|w| Pdr::run_detailed(base_cfg.check().unwrap(), &w.walk).0)
         .collect();
     let ours: Vec<_> = floor
         .walks
         .iter()
-        .map(|w| Pdr::run_detailed(cfg, &w.walk).0)
+        .map(|w| Pdr::run_detailed(cfg.check().unwrap(), &w.walk).0)
         .collect();
     let cal = CalibrationConfig::default();
     let (mut e_base, mut e_ours) = (Vec::new(), Vec::new());

@@ -135,7 +135,7 @@ impl ApIndexMatcher {
         }
         if config.top_offline == 0 || config.k == 0 {
             return Err(FingerprintError::InvalidConfig(
-                "apindex: top_offline and k must be at least 1".into(),
+                wipdr_core::ConfigError::new("apindex", "top_offline and k must be at least 1"),
             ));
         }
         let mut index = vec![Vec::new(); map.n_aps()];

@@ -203,7 +203,7 @@ struct GroupClusters {
 
 /// Converts an affinity error into the crate's error.
 fn ap_error(e: AffinityError) -> FingerprintError {
-    FingerprintError::InvalidConfig(format!("affinity propagation: {e}"))
+    FingerprintError::InvalidConfig(wipdr_core::ConfigError::new("affinity", e.to_string()))
 }
 
 /// The query as a dense filled vector over the map's columns.
@@ -288,7 +288,10 @@ impl ClusterSearchMatcher {
         }
         if config.n_strongest == 0 || config.k == 0 {
             return Err(FingerprintError::InvalidConfig(
-                "cluster search: n_strongest and k must be at least 1".into(),
+                wipdr_core::ConfigError::new(
+                    "cluster_search",
+                    "n_strongest and k must be at least 1",
+                ),
             ));
         }
         let mut groups: BTreeMap<(Option<i32>, Option<i32>), Vec<usize>> = BTreeMap::new();

@@ -52,9 +52,9 @@ pub enum FingerprintError {
     /// A radio map without reference points.
     #[error("the radio map has no reference points")]
     EmptyMap,
-    /// An invalid configuration value.
-    #[error("invalid configuration: {0}")]
-    InvalidConfig(String),
+    /// An invalid configuration value: the field's dotted path and what is wrong.
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// A limit on memory crossed (before the memory is allocated): what was asked for, the
     /// limit's config field and value, and how to raise it (boxed: the error stays small).
     #[error("{0}")]
@@ -62,6 +62,17 @@ pub enum FingerprintError {
     /// Invalid input data while building a map (names the item).
     #[error("invalid input: {0}")]
     InvalidInput(String),
+}
+
+impl FingerprintError {
+    /// The error as a config error: its [`wipdr_core::ConfigError`] when it is one, else
+    /// the message under an empty path (a check that failed for another reason).
+    pub fn into_config_error(self) -> wipdr_core::ConfigError {
+        match self {
+            Self::InvalidConfig(e) => e,
+            other => wipdr_core::ConfigError::new("", other.to_string()),
+        }
+    }
 }
 
 /// The details of [`FingerprintError::LimitExceeded`].

@@ -110,30 +110,33 @@ impl AlongWalkConfig {
     /// Checks the values (positive, finite).
     pub fn validate(&self) -> Result<(), FingerprintError> {
         if !(self.spacing_m.is_finite() && self.spacing_m > 0.0) {
-            return Err(invalid(format!(
-                "along_walk.spacing_m must be positive, got {}",
-                self.spacing_m
-            )));
+            return Err(invalid(
+                "along_walk.spacing_m",
+                format!("must be positive, got {}", self.spacing_m),
+            ));
         }
         if !(self.max_gap_m.is_finite() && self.max_gap_m > 0.0) {
-            return Err(invalid(format!(
-                "along_walk.max_gap_m must be positive, got {}",
-                self.max_gap_m
-            )));
+            return Err(invalid(
+                "along_walk.max_gap_m",
+                format!("must be positive, got {}", self.max_gap_m),
+            ));
         }
         if self.max_gap_ms <= 0 {
-            return Err(invalid(format!(
-                "along_walk.max_gap_ms must be positive, got {}",
-                self.max_gap_ms
-            )));
+            return Err(invalid(
+                "along_walk.max_gap_ms",
+                format!("must be positive, got {}", self.max_gap_ms),
+            ));
         }
         if self.max_gap_m / self.spacing_m > MAX_POINTS_PER_PAIR {
-            return Err(invalid(format!(
-                "along_walk.spacing_m = {} inserts up to {:.0} points between two scans \
+            return Err(invalid(
+                "along_walk.spacing_m",
+                format!(
+                    "=  {} inserts up to {:.0} points between two scans \
                  (max_gap_m / spacing_m); the limit is {MAX_POINTS_PER_PAIR}: raise spacing_m",
-                self.spacing_m,
-                self.max_gap_m / self.spacing_m
-            )));
+                    self.spacing_m,
+                    self.max_gap_m / self.spacing_m
+                ),
+            ));
         }
         Ok(())
     }
@@ -177,14 +180,16 @@ impl Kernel {
     fn validate(&self) -> Result<(), FingerprintError> {
         match *self {
             Kernel::Gaussian { sigma_m } if !(sigma_m.is_finite() && sigma_m > 0.0) => {
-                Err(invalid(format!(
-                    "spatial kernel sigma_m must be positive, got {sigma_m}"
-                )))
+                Err(invalid(
+                    "spatial.kernel.sigma_m",
+                    format!("must be positive, got {sigma_m}"),
+                ))
             }
             Kernel::InverseDistance { power } if !(power.is_finite() && power >= 0.0) => {
-                Err(invalid(format!(
-                    "spatial kernel power must be finite and >= 0, got {power}"
-                )))
+                Err(invalid(
+                    "spatial.kernel.power",
+                    format!("must be finite and >= 0, got {power}"),
+                ))
             }
             _ => Ok(()),
         }
@@ -237,45 +242,48 @@ impl SpatialConfig {
     /// Checks the values.
     pub fn validate(&self) -> Result<(), FingerprintError> {
         if !(self.cell_m.is_finite() && self.cell_m > 0.0) {
-            return Err(invalid(format!(
-                "spatial.cell_m must be positive, got {}",
-                self.cell_m
-            )));
+            return Err(invalid(
+                "spatial.cell_m",
+                format!("must be positive, got {}", self.cell_m),
+            ));
         }
         if !(self.radius_m.is_finite() && self.radius_m > 0.0) {
-            return Err(invalid(format!(
-                "spatial.radius_m must be positive, got {}",
-                self.radius_m
-            )));
+            return Err(invalid(
+                "spatial.radius_m",
+                format!("must be positive, got {}", self.radius_m),
+            ));
         }
         if !(self.min_heard_share > 0.0 && self.min_heard_share <= 1.0) {
-            return Err(invalid(format!(
-                "spatial.min_heard_share must be in (0, 1], got {}",
-                self.min_heard_share
-            )));
+            return Err(invalid(
+                "spatial.min_heard_share",
+                format!("must be in (0, 1], got {}", self.min_heard_share),
+            ));
         }
         if !(self.min_gap_m.is_finite() && self.min_gap_m >= 0.0) {
-            return Err(invalid(format!(
-                "spatial.min_gap_m must be finite and >= 0, got {}",
-                self.min_gap_m
-            )));
+            return Err(invalid(
+                "spatial.min_gap_m",
+                format!("must be finite and >= 0, got {}", self.min_gap_m),
+            ));
         }
         if self.min_sources == 0 {
-            return Err(invalid("spatial.min_sources must be >= 1".into()));
+            return Err(invalid("spatial.min_sources", "must be >= 1".into()));
         }
         if !(1..=MAX_SPATIAL_POINTS_CEILING).contains(&self.max_points) {
-            return Err(invalid(format!(
-                "spatial.max_points must be in 1..={MAX_SPATIAL_POINTS_CEILING} (each lattice \
+            return Err(invalid(
+                "spatial.max_points",
+                format!(
+                    "must be in 1..={MAX_SPATIAL_POINTS_CEILING} (each lattice \
                  point is a row of the radio map's dense table), got {}",
-                self.max_points
-            )));
+                    self.max_points
+                ),
+            ));
         }
         self.kernel.validate()
     }
 }
 
-fn invalid(msg: String) -> FingerprintError {
-    FingerprintError::InvalidConfig(msg)
+fn invalid(path: impl Into<String>, reason: String) -> FingerprintError {
+    FingerprintError::InvalidConfig(wipdr_core::ConfigError::new(path, reason))
 }
 
 /// A fingerprint in sparse form: position and the heard APs as `(column, dBm)`, sorted by
@@ -491,11 +499,14 @@ fn spatial_within(
     let c = cfg.cell_m;
     let per_source = ((2.0 * r / c).ceil() + 1.0).powi(2);
     if per_source > cfg.max_points as f64 {
-        return Err(invalid(format!(
-            "spatial interpolation: radius {r} m over cells of {c} m gives {per_source} lattice \
+        return Err(invalid(
+            "spatial.max_points",
+            format!(
+                "spatial interpolation: radius {r} m over cells of {c} m gives {per_source} lattice \
              points per source, over max_points = {}",
-            cfg.max_points
-        )));
+                cfg.max_points
+            ),
+        ));
     }
     let mut lattice: HashSet<(i64, i64)> = HashSet::new();
     for s in sources {
@@ -516,12 +527,15 @@ fn spatial_within(
                 }
             }
             if lattice.len() > cfg.max_points {
-                return Err(invalid(format!(
-                    "spatial interpolation would create over max_points = {} lattice points \
+                return Err(invalid(
+                    "spatial.max_points",
+                    format!(
+                        "spatial interpolation would create over max_points = {} lattice points \
                      (cell {c} m, radius {r} m, {} sources)",
-                    cfg.max_points,
-                    sources.len()
-                )));
+                        cfg.max_points,
+                        sources.len()
+                    ),
+                ));
             }
             if let Some(room) = room {
                 room.budget

@@ -69,7 +69,7 @@ pub fn kmeans(
     }
     if config.k == 0 || config.max_iter == 0 {
         return Err(FingerprintError::InvalidConfig(
-            "k-means: k and max_iter must be at least 1".into(),
+            wipdr_core::ConfigError::new("kmeans", "k and max_iter must be at least 1"),
         ));
     }
     if data.iter().any(|v| !v.is_finite()) {

@@ -147,9 +147,9 @@ impl LikelihoodConfig {
     /// Checks every field; the error names it.
     pub fn check(&self) -> Result<(), FingerprintError> {
         let bad = |field: &str, what: &str| {
-            Err(FingerprintError::InvalidConfig(format!(
-                "likelihood.{field}: {what}"
-            )))
+            Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new(format!("likelihood.{field}"), what),
+            ))
         };
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(self.cell_m) {
@@ -757,9 +757,10 @@ fn fit_floor(
 fn support_cells(config: &LikelihoodConfig) -> Result<usize, FingerprintError> {
     wipdr_core::grid::checked_usize((config.support_m / config.cell_m).ceil(), 1 << 16).ok_or_else(
         || {
-            FingerprintError::InvalidConfig(
-                "likelihood.support_m: more than 65,536 cells of likelihood.cell_m".into(),
-            )
+            FingerprintError::InvalidConfig(wipdr_core::ConfigError::new(
+                "likelihood.support_m",
+                "more than 65,536 cells of likelihood.cell_m",
+            ))
         },
     )
 }

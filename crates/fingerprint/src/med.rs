@@ -147,17 +147,19 @@ impl MedMatcher {
         }
         if config.window == 0 || config.k == 0 {
             return Err(FingerprintError::InvalidConfig(
-                "med: window and k must be at least 1".into(),
+                wipdr_core::ConfigError::new("med", "window and k must be at least 1"),
             ));
         }
         let shared_ap = match config.metric {
             MedMetric::Euclidean => None,
             MedMetric::SharedAp(d) => {
                 if !(d.lambda.is_finite() && d.lambda >= 0.0) {
-                    return Err(FingerprintError::InvalidConfig(format!(
-                        "med: shared_ap lambda must be finite and >= 0, got {}",
-                        d.lambda
-                    )));
+                    return Err(FingerprintError::InvalidConfig(
+                        wipdr_core::ConfigError::new(
+                            "med.distance",
+                            format!("shared_ap lambda must be finite and >= 0, got {}", d.lambda),
+                        ),
+                    ));
                 }
                 // Raw representation: "not heard" is 0, so the sparse engine is used.
                 let knn = KnnMatcher::new(
@@ -269,7 +271,7 @@ impl MedMatcher {
             return Err(FingerprintError::EmptyScan);
         }
         if !(displacement.x.is_finite() && displacement.y.is_finite()) {
-            return Err(FingerprintError::InvalidConfig(
+            return Err(FingerprintError::InvalidInput(
                 "med: non-finite displacement".into(),
             ));
         }

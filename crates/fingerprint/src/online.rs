@@ -281,7 +281,10 @@ impl MatcherConfig {
     /// Checks the settings without building: errors name the field (`matcher.k`).
     pub fn validate(&self) -> Result<(), FingerprintError> {
         let bad = |field: &str, reason: String| {
-            FingerprintError::InvalidConfig(format!("matcher.{field}: {reason}"))
+            FingerprintError::InvalidConfig(wipdr_core::ConfigError::new(
+                format!("matcher.{field}"),
+                reason,
+            ))
         };
         if self.k() == 0 {
             return Err(bad("k", "must be at least 1, got 0".into()));
@@ -336,11 +339,16 @@ impl MatcherConfig {
             return Err(FingerprintError::EmptyMap);
         }
         if self.k() > map.len() {
-            return Err(FingerprintError::InvalidConfig(format!(
-                "matcher.k: {} neighbours asked of a radio map of {} reference points (lower k)",
-                self.k(),
-                map.len()
-            )));
+            return Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new(
+                    "matcher.k",
+                    format!(
+                        "{} neighbours asked of a radio map of {} reference points (lower k)",
+                        self.k(),
+                        map.len()
+                    ),
+                ),
+            ));
         }
         let inner = match self {
             Self::Wknn(c) => Model::Stateless(
@@ -383,9 +391,12 @@ impl MatcherConfig {
 }
 
 fn unknown_kind(kind: &str) -> FingerprintError {
-    FingerprintError::InvalidConfig(format!(
-        "matcher.kind: unknown matcher {kind:?} (known: {})",
-        MATCHER_KINDS.join(", ")
+    FingerprintError::InvalidConfig(wipdr_core::ConfigError::new(
+        "matcher.kind",
+        format!(
+            "unknown matcher {kind:?} (known: {})",
+            MATCHER_KINDS.join(", ")
+        ),
     ))
 }
 

@@ -31,16 +31,19 @@ pub struct QueryFilter {
 
 impl QueryFilter {
     /// Checks the values; the error is the field's name and what is wrong.
-    pub fn validate_fields(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate_fields(&self) -> Result<(), wipdr_core::ConfigError> {
         if let Some(v) = self.min_rssi_dbm
             && !v.is_finite()
         {
-            return Err(("min_rssi_dbm", format!("must be finite, got {v}")));
+            return Err(wipdr_core::ConfigError::new(
+                "min_rssi_dbm",
+                format!("must be finite, got {v}"),
+            ));
         }
         if let Some(age) = self.max_age_ms
             && age < 0
         {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "max_age_ms",
                 format!(
                     "must be >= 0 ms (or \"off\" to keep every entry), got {age}: a negative age drops every entry"

@@ -602,9 +602,9 @@ impl RadioMap {
     /// Changes the "not heard" value, rewriting the never-heard entries.
     pub fn set_not_heard_dbm(&mut self, v: f32) -> Result<(), FingerprintError> {
         if !v.is_finite() {
-            return Err(FingerprintError::InvalidConfig(format!(
-                "not_heard_dbm must be finite, got {v}"
-            )));
+            return Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new("not_heard_dbm", format!("must be finite, got {v}")),
+            ));
         }
         self.config.not_heard_dbm = v;
         for (x, &c) in self.mean_dbm.iter_mut().zip(&self.counts) {

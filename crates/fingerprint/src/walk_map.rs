@@ -123,11 +123,11 @@ impl Default for WalkMapConfig {
 impl WalkMapConfig {
     /// Checks the values; the error is the field's name (relative to `radio_map`) and what
     /// is wrong.
-    pub fn validate_fields(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate_fields(&self) -> Result<(), wipdr_core::ConfigError> {
         if let Some(age) = self.max_entry_age_ms
             && age < 0
         {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "max_entry_age_ms",
                 format!(
                     "must be >= 0 ms (or \"off\" to keep every entry), got {age}: a negative age drops every entry"
@@ -137,21 +137,27 @@ impl WalkMapConfig {
         if let Some(gap) = self.max_waypoint_gap_ms
             && gap < 0
         {
-            return Err(("max_waypoint_gap_ms", format!("must be >= 0 ms, got {gap}")));
+            return Err(wipdr_core::ConfigError::new(
+                "max_waypoint_gap_ms",
+                format!("must be >= 0 ms, got {gap}"),
+            ));
         }
         if let Some(c) = self.grid_cell_m
             && !(c.is_finite() && c > 0.0)
         {
-            return Err(("grid_cell_m", format!("must be positive, got {c}")));
+            return Err(wipdr_core::ConfigError::new(
+                "grid_cell_m",
+                format!("must be positive, got {c}"),
+            ));
         }
         if !(1..=MAX_APS_CEILING).contains(&self.max_aps) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "max_aps",
                 format!("must be in 1..={MAX_APS_CEILING}, got {}", self.max_aps),
             ));
         }
         if !(1..=MAX_TABLE_MIB_CEILING).contains(&self.max_table_mib) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "max_table_mib",
                 format!(
                     "must be in 1..={MAX_TABLE_MIB_CEILING} MiB, got {}",
@@ -164,9 +170,7 @@ impl WalkMapConfig {
 
     /// Checks the values ([`WalkMapConfig::validate_fields`]), the interpolation's too.
     pub fn validate(&self) -> Result<(), FingerprintError> {
-        self.validate_fields().map_err(|(field, reason)| {
-            FingerprintError::InvalidConfig(format!("radio_map.{field}: {reason}"))
-        })?;
+        self.validate_fields().map_err(|e| e.under("radio_map"))?;
         if let Some(i) = &self.interpolation {
             i.validate()?;
         }

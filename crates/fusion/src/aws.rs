@@ -11,6 +11,7 @@
 //! is ours.
 
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 use wipdr_core::{Point2, StepEvent, TimestampMs, WifiObservation, angle};
 
 use crate::fix_error::{GainVariance, RadiusConfig};
@@ -74,23 +75,23 @@ impl AwsFuser {
     pub fn new(cfg: AwsConfig, start: Option<Point2>) -> Result<Self, FusionError> {
         for (field, v) in [("w1", cfg.w1), ("w2", cfg.w2)] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and >= 0, got {v}"),
-                });
+                    format!("must be finite and >= 0, got {v}"),
+                )));
             }
         }
         if cfg.w1 + cfg.w2 <= 0.0 {
-            return Err(FusionError::InvalidConfig {
-                field: "w1",
-                reason: "w1 + w2 must be > 0".into(),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "w1",
+                "w1 + w2 must be > 0",
+            )));
         }
         if !(cfg.delta_s_m.is_finite() && cfg.delta_s_m > 0.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "delta_s_m",
-                reason: format!("must be finite and > 0, got {}", cfg.delta_s_m),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "delta_s_m",
+                format!("must be finite and > 0, got {}", cfg.delta_s_m),
+            )));
         }
         cfg.radius.validate()?;
         let mut variance = GainVariance::new(cfg.radius.clone());

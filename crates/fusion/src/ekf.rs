@@ -45,6 +45,7 @@
 #![allow(non_snake_case)]
 
 use std::collections::VecDeque;
+use wipdr_core::ConfigError;
 
 use nalgebra::{Matrix2, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
@@ -275,10 +276,10 @@ fn positive(field: &'static str, v: f64) -> Result<(), FusionError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(FusionError::InvalidConfig {
+        Err(FusionError::InvalidConfig(ConfigError::new(
             field,
-            reason: format!("must be finite and > 0, got {v}"),
-        })
+            format!("must be finite and > 0, got {v}"),
+        )))
     }
 }
 
@@ -306,10 +307,10 @@ impl EkfConfig {
             self.robust.reinit_consistency_m,
         )?;
         if self.scenario.window == 0 {
-            return Err(FusionError::InvalidConfig {
-                field: "scenario.window",
-                reason: "must be >= 1".into(),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "scenario.window",
+                "must be >= 1",
+            )));
         }
         kalman::f_quantile_inf(2, self.robust.alpha)?;
         Ok(())
@@ -749,10 +750,7 @@ mod tests {
         };
         assert!(matches!(
             ErrorStateEkf::new("ekf", bad, Adaptation::None, false, None),
-            Err(FusionError::InvalidConfig {
-                field: "r_wifi_m2",
-                ..
-            })
+            Err(FusionError::InvalidConfig(e)) if e.path == "r_wifi_m2"
         ));
     }
 

@@ -41,6 +41,7 @@
 
 use nalgebra::Matrix2;
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 use wipdr_core::Vector2;
 
 use crate::FusionError;
@@ -93,10 +94,10 @@ impl RadiusConfig {
             let ok = v.is_finite() && if strictly_positive { v > 0.0 } else { v >= 0.0 };
             if !ok {
                 let bound = if strictly_positive { "> 0" } else { ">= 0" };
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and {bound}, got {v}"),
-                });
+                    format!("must be finite and {bound}, got {v}"),
+                )));
             }
         }
         Ok(())
@@ -300,10 +301,7 @@ mod tests {
         };
         assert!(matches!(
             bad.validate(),
-            Err(FusionError::InvalidConfig {
-                field: "radius.bias_share",
-                ..
-            })
+            Err(FusionError::InvalidConfig(e)) if e.path == "radius.bias_share"
         ));
         let bad = RadiusConfig {
             prior_wifi_sd_m: 0.0,

@@ -22,6 +22,7 @@
 
 use nalgebra::{SMatrix, SVector};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
+use wipdr_core::ConfigError;
 
 use crate::FusionError;
 
@@ -232,15 +233,13 @@ pub fn enforce_symmetric_pd<const N: usize>(P: &mut SMatrix<f64, N, N>) {
 /// ```
 pub fn f_quantile_inf(m: usize, alpha: f64) -> Result<f64, FusionError> {
     if m == 0 || !(alpha > 0.0 && alpha < 1.0) {
-        return Err(FusionError::InvalidConfig {
-            field: "robust.alpha",
-            reason: format!("alpha must be in (0, 1) and m >= 1 (alpha {alpha}, m {m})"),
-        });
+        return Err(FusionError::InvalidConfig(ConfigError::new(
+            "robust.alpha",
+            format!("alpha must be in (0, 1) and m >= 1 (alpha {alpha}, m {m})"),
+        )));
     }
-    let chi = ChiSquared::new(m as f64).map_err(|e| FusionError::InvalidConfig {
-        field: "robust.alpha",
-        reason: e.to_string(),
-    })?;
+    let chi = ChiSquared::new(m as f64)
+        .map_err(|e| FusionError::InvalidConfig(ConfigError::new("robust.alpha", e.to_string())))?;
     Ok(chi.inverse_cdf(1.0 - alpha) / m as f64)
 }
 

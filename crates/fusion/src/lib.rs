@@ -105,14 +105,9 @@ pub use walls::WallIndex;
 /// Errors of the fusion crate.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FusionError {
-    /// A configuration field is out of range.
-    #[error("invalid fusion config field `{field}`: {reason}")]
-    InvalidConfig {
-        /// Dotted path of the field.
-        field: &'static str,
-        /// What is wrong.
-        reason: String,
-    },
+    /// A configuration field is out of range (its path relative to the scheme's section).
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// The innovation covariance is not positive definite.
     #[error("innovation covariance is not positive definite")]
     SingularInnovation,
@@ -122,6 +117,17 @@ pub enum FusionError {
     /// Unknown scheme name.
     #[error("unknown fusion scheme `{0}` (known: {known})", known = scheme_names().join(", "))]
     UnknownScheme(String),
+}
+
+impl FusionError {
+    /// The error as a config error: its [`wipdr_core::ConfigError`] when it is one, else
+    /// the message under an empty path (a check that failed for another reason).
+    pub fn into_config_error(self) -> wipdr_core::ConfigError {
+        match self {
+            Self::InvalidConfig(e) => e,
+            other => wipdr_core::ConfigError::new("", other.to_string()),
+        }
+    }
 }
 
 /// What a scheme exposes for plots and diagnosis besides its position.

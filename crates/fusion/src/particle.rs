@@ -35,6 +35,7 @@
 //! cloud). Nothing divides by zero.
 
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 
 use nalgebra::Matrix2;
 use rand::rngs::ChaCha8Rng;
@@ -171,20 +172,20 @@ impl PfConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), FusionError> {
         if !(self.likelihood_share.is_finite() && (0.0..=1.0).contains(&self.likelihood_share)) {
-            return Err(FusionError::InvalidConfig {
-                field: "likelihood_share",
-                reason: format!("must be in [0, 1], got {}", self.likelihood_share),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "likelihood_share",
+                format!("must be in [0, 1], got {}", self.likelihood_share),
+            )));
         }
         if self.n_particles == 0 || self.n_particles > MAX_PARTICLES {
-            return Err(FusionError::InvalidConfig {
-                field: "n_particles",
-                reason: format!(
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "n_particles",
+                format!(
                     "must be in 1..={MAX_PARTICLES}, got {} (each particle costs about 100 bytes \
                      and one likelihood per fix)",
                     self.n_particles
                 ),
-            });
+            )));
         }
         let non_negative = [
             ("step_length_sd_m", self.step_length_sd_m),
@@ -200,10 +201,10 @@ impl PfConfig {
         ];
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and >= 0, got {v}"),
-                });
+                    format!("must be finite and >= 0, got {v}"),
+                )));
             }
         }
         let positive = [
@@ -215,10 +216,10 @@ impl PfConfig {
         ];
         for (field, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and > 0, got {v}"),
-                });
+                    format!("must be finite and > 0, got {v}"),
+                )));
             }
         }
         self.radius.validate()

@@ -24,6 +24,7 @@
 use nalgebra::Matrix2;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
+use wipdr_core::ConfigError;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
 use crate::fix_error::{FixErrorTracker, RadiusConfig};
@@ -69,22 +70,22 @@ impl RobustOffsetConfig {
     /// Checks the fields.
     pub fn validate(&self) -> Result<(), FusionError> {
         if self.window == 0 {
-            return Err(FusionError::InvalidConfig {
-                field: "window",
-                reason: "must be at least 1".into(),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "window",
+                "must be at least 1",
+            )));
         }
         if !(self.quality_power.is_finite() && self.quality_power >= 0.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "quality_power",
-                reason: format!("must be finite and >= 0, got {}", self.quality_power),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "quality_power",
+                format!("must be finite and >= 0, got {}", self.quality_power),
+            )));
         }
         if !(self.step_scale.is_finite() && self.step_scale > 0.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "step_scale",
-                reason: format!("must be positive and finite, got {}", self.step_scale),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "step_scale",
+                format!("must be positive and finite, got {}", self.step_scale),
+            )));
         }
         self.radius.validate()
     }

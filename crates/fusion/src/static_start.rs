@@ -26,6 +26,7 @@
 //! ```
 
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 use wipdr_core::{Candidate, Point2, StepEvent, Vector2, WifiObservation};
 
 use crate::robust_offset::geometric_median;
@@ -55,16 +56,16 @@ impl StaticStartConfig {
     /// Checks the fields.
     pub fn validate(&self) -> Result<(), FusionError> {
         if !(self.gross_m.is_finite() && self.gross_m > 0.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "static_start.gross_m",
-                reason: format!("must be finite and > 0, got {}", self.gross_m),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "static_start.gross_m",
+                format!("must be finite and > 0, got {}", self.gross_m),
+            )));
         }
         if self.max_fixes == 0 {
-            return Err(FusionError::InvalidConfig {
-                field: "static_start.max_fixes",
-                reason: "must be at least 1".into(),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "static_start.max_fixes",
+                "must be at least 1",
+            )));
         }
         Ok(())
     }

@@ -31,6 +31,7 @@
 //! Wi-Fi then dominates. The start state is Unlocked with `lambda = epsilon` by default.
 
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Vector2, WifiObservation, angle};
 
 use crate::fix_error::{GainVariance, RadiusConfig};
@@ -173,10 +174,10 @@ impl TcpfConfig {
         ];
         for (field, v, ok) in checks {
             if !(v.is_finite() && ok) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("out of range: {v}"),
-                });
+                    format!("out of range: {v}"),
+                )));
             }
         }
         self.radius.validate()

@@ -24,6 +24,7 @@
 //! assert_eq!(r.distance(Point2::new(5.0, 40.0)), 5.0); // beyond the cap
 //! ```
 
+use wipdr_core::ConfigError;
 use wipdr_core::{GridSpec, Point2, Segment};
 
 use crate::FusionError;
@@ -60,7 +61,8 @@ impl TrailRaster {
         cell_m: f64,
         max_distance_m: f64,
     ) -> Result<Self, FusionError> {
-        let invalid = |field, reason: String| FusionError::InvalidConfig { field, reason };
+        let invalid =
+            |field, reason: String| FusionError::InvalidConfig(ConfigError::new(field, reason));
         if !(cell_m.is_finite() && cell_m > 0.0) {
             return Err(invalid(
                 "cell_m",
@@ -179,7 +181,7 @@ mod tests {
         }];
         for (cell, cap, field) in [(0.0, 1.0, "cell_m"), (1.0, f64::NAN, "max_distance_m")] {
             match TrailRaster::new(&s, cell, cap) {
-                Err(FusionError::InvalidConfig { field: f, .. }) => assert_eq!(f, field),
+                Err(FusionError::InvalidConfig(e)) => assert_eq!(e.path, field),
                 other => panic!("expected an error on {field}, got {other:?}"),
             }
         }

@@ -35,6 +35,7 @@
 
 use std::collections::VecDeque;
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 
 use serde::{Deserialize, Serialize};
 use wipdr_core::{FloorPlan, GridSpec, Point2, Polygon, StepEvent, WifiObservation};
@@ -101,9 +102,8 @@ impl WalkableGrid {
     /// Rasterises `plan` at `cell_m` metres per cell over the plan's extent (outline bounding
     /// box and `[0, width] x [0, height]`, whichever is larger).
     pub fn new(plan: &FloorPlan, cell_m: f64) -> Result<Self, FusionError> {
-        let invalid = |reason: String| FusionError::InvalidConfig {
-            field: "walkable.cell_m",
-            reason,
+        let invalid = |reason: String| {
+            FusionError::InvalidConfig(ConfigError::new("walkable.cell_m", reason))
         };
         if !(cell_m.is_finite() && cell_m > 0.0) {
             return Err(invalid(format!("must be finite and > 0, got {cell_m}")));

@@ -3,6 +3,7 @@
 //! a waypoint at 1e20 crashed `wipdr eval` through `ceil() as usize + 1` in `trails.rs`).
 
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 
 use wipdr_core::{FloorPlan, MotionState, Point2, Polygon, Segment, StepEvent, WifiObservation};
 use wipdr_fusion::point_mass::{PointMassConfig, PointMassFilter};
@@ -60,7 +61,10 @@ fn a_trail_raster_over_a_far_waypoint_is_a_typed_error() {
             vec![seg(-far, 0.0, far, 0.0)],
         ] {
             match TrailRaster::new(&segments, 0.5, 10.0) {
-                Err(FusionError::InvalidConfig { field, reason }) => {
+                Err(FusionError::InvalidConfig(ConfigError {
+                    path: field,
+                    reason,
+                })) => {
                     assert_eq!(field, "trails", "{far}: {reason}");
                     assert!(
                         reason.contains(&trails::MAX_CELLS.to_string()),
@@ -114,10 +118,7 @@ fn non_finite_trails_are_skipped() {
         }
         assert!(matches!(
             TrailRaster::new(&[seg(0.0, bad, 1.0, 1.0)], 0.5, 10.0),
-            Err(FusionError::InvalidConfig {
-                field: "trails",
-                ..
-            })
+            Err(FusionError::InvalidConfig(e)) if e.path == "trails"
         ));
     }
 }

@@ -140,7 +140,7 @@ impl Limits {
 
     /// Checks every limit against its ceiling ([`Limits::CEILINGS`]); the error names the
     /// field, the value and the ceiling with the memory it stands for.
-    pub fn validate(&self) -> Result<(), (String, String)> {
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
         let values: [u64; 15] = [
             self.max_line_bytes as u64,
             self.max_input_bytes,
@@ -160,7 +160,7 @@ impl Limits {
         ];
         for ((field, ceiling, why), value) in Self::CEILINGS.iter().zip(values) {
             if value > *ceiling {
-                return Err((
+                return Err(wipdr_core::ConfigError::new(
                     (*field).to_string(),
                     format!("{value} is above the ceiling {ceiling} ({why})"),
                 ));
@@ -203,13 +203,16 @@ mod tests {
             max_scan_entries: 10_000_000,
             ..Limits::default()
         };
-        let (field, message) = raised.validate().unwrap_err();
+        let wipdr_core::ConfigError {
+            path: field,
+            reason: message,
+        } = raised.validate().unwrap_err();
         assert_eq!(field, "max_scan_entries");
         assert!(message.contains("above the ceiling 1000000"), "{message}");
         let cells = Limits {
             max_csv_cells: u64::MAX,
             ..Limits::default()
         };
-        assert_eq!(cells.validate().unwrap_err().0, "max_csv_cells");
+        assert_eq!(cells.validate().unwrap_err().path, "max_csv_cells");
     }
 }

@@ -67,22 +67,22 @@ impl Default for CalibrationConfig {
 impl CalibrationConfig {
     /// Checks the values a config file could get wrong; the error names the field (under
     /// `calibration`) and the value.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
         if !(self.min_leg_length.is_finite() && self.min_leg_length >= 0.0) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "min_leg_length",
                 format!("must be finite and >= 0, got {}", self.min_leg_length),
             ));
         }
         if !(self.ridge_per_leg.is_finite() && self.ridge_per_leg >= 0.0) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "ridge_per_leg",
                 format!("must be finite and >= 0, got {}", self.ridge_per_leg),
             ));
         }
         let g = self.min_grid_concentration;
         if !(g.is_finite() && (0.0..=1.0).contains(&g)) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "min_grid_concentration",
                 format!("must be in [0, 1], got {g}"),
             ));
@@ -580,12 +580,12 @@ mod tests {
             min_grid_concentration: 1.5,
             ..Default::default()
         };
-        assert_eq!(c.validate().unwrap_err().0, "min_grid_concentration");
+        assert_eq!(c.validate().unwrap_err().path, "min_grid_concentration");
         let c = CalibrationConfig {
             min_leg_length: f64::NAN,
             ..Default::default()
         };
-        assert_eq!(c.validate().unwrap_err().0, "min_leg_length");
+        assert_eq!(c.validate().unwrap_err().path, "min_leg_length");
         assert!(CalibrationConfig::default().validate().is_ok());
     }
 }

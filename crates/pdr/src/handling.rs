@@ -98,11 +98,11 @@ impl Default for HandlingConfig {
 impl HandlingConfig {
     /// Checks the values a config file could get wrong; the error names the field (under
     /// `handling`) and the value.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
         if let Some(m) = self.max_rotation_rad_s
             && !(m.is_finite() && m > 0.0)
         {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "handling.max_rotation_rad_s",
                 format!("must be finite and > 0, got {m}"),
             ));
@@ -110,7 +110,7 @@ impl HandlingConfig {
         if let Some(release) = self.release_rad_s {
             let max = self.max_rotation_rad_s.unwrap_or(f64::INFINITY);
             if !(release.is_finite() && release >= 0.0 && release <= max) {
-                return Err((
+                return Err(wipdr_core::ConfigError::new(
                     "handling.release_rad_s",
                     format!(
                         "must be finite, >= 0 and <= handling.max_rotation_rad_s ({max}), got \
@@ -122,20 +122,20 @@ impl HandlingConfig {
         if let Some(t) = self.tumbling_rad_s
             && !(t.is_finite() && t >= 0.0)
         {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "handling.tumbling_rad_s",
                 format!("must be finite and >= 0, got {t}"),
             ));
         }
         let share = self.max_axis_share;
         if !(share.is_finite() && share > 0.0 && share <= 1.0) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "handling.max_axis_share",
                 format!("must be in (0, 1], got {share}"),
             ));
         }
         if !(self.axis_window_s.is_finite() && self.axis_window_s > 0.0) {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "handling.axis_window_s",
                 format!("must be finite and > 0, got {}", self.axis_window_s),
             ));
@@ -145,7 +145,10 @@ impl HandlingConfig {
             ("handling.tau_s", self.tau_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err((field, format!("must be finite and >= 0, got {v}")));
+                return Err(wipdr_core::ConfigError::new(
+                    field,
+                    format!("must be finite and >= 0, got {v}"),
+                ));
             }
         }
         Ok(())

@@ -27,7 +27,8 @@
 //! use wipdr_core::{Vec3Sample, RotationVectorSample};
 //! use wipdr_pdr::{Pdr, PdrConfig};
 //!
-//! let mut pdr = Pdr::new(PdrConfig::default());
+//! // A config is checked before the pipeline takes it (`PdrConfig::check`).
+//! let mut pdr = Pdr::new(PdrConfig::default().check().unwrap());
 //! let mut steps = Vec::new();
 //! for i in 0..1500 {
 //!     let t = i * 20; // 50 Hz, 30 s
@@ -57,6 +58,6 @@ pub mod vertical;
 
 pub use length::{StepFeatures, StepLengthConfig, StepLengthModel};
 pub use pipeline::{
-    HeadingAt, HeadingConfig, HeadingSource, Pdr, PdrConfig, PdrDiagnostics, SourceHeadings,
-    StepDetail,
+    CheckedPdrConfig, HeadingAt, HeadingConfig, HeadingSource, Pdr, PdrConfig, PdrDiagnostics,
+    SourceHeadings, StepDetail,
 };

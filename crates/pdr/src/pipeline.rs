@@ -134,20 +134,61 @@ impl Default for PdrConfig {
     }
 }
 
-/// A PDR setting out of range: `field` is the path under `[pdr]`.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("pdr.{field}: {reason}")]
-pub struct PdrConfigError {
-    /// Dotted path under the PDR config (`min_step_length`, `detector.window_s`).
-    pub field: &'static str,
-    /// What is wrong, with the value given.
-    pub reason: String,
+/// A [`PdrConfig`] whose values passed [`PdrConfig::validate`]: the only form [`Pdr`] is
+/// built from, so a config read from a file reaches the pipeline checked or not at all (the
+/// checked/unchecked split of linfa's `ParamGuard`). Read it through `Deref`; make it with
+/// [`PdrConfig::check`], or take the defaults (valid: a unit test holds them).
+///
+/// ```
+/// use wipdr_pdr::{CheckedPdrConfig, PdrConfig};
+/// let bad = PdrConfig { min_step_length: f64::NAN, ..PdrConfig::default() };
+/// assert_eq!(bad.check().unwrap_err().path, "min_step_length");
+/// let good: CheckedPdrConfig = PdrConfig::default().check().unwrap();
+/// assert_eq!(good.max_step_length, PdrConfig::default().max_step_length);
+/// assert_eq!(good, CheckedPdrConfig::default());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckedPdrConfig(PdrConfig);
+
+impl CheckedPdrConfig {
+    /// The config inside.
+    pub fn into_inner(self) -> PdrConfig {
+        self.0
+    }
+}
+
+impl Default for CheckedPdrConfig {
+    /// [`PdrConfig::default`], which validates.
+    fn default() -> Self {
+        Self(PdrConfig::default())
+    }
+}
+
+impl std::ops::Deref for CheckedPdrConfig {
+    type Target = PdrConfig;
+    fn deref(&self) -> &PdrConfig {
+        &self.0
+    }
+}
+
+impl TryFrom<PdrConfig> for CheckedPdrConfig {
+    type Error = wipdr_core::ConfigError;
+    fn try_from(cfg: PdrConfig) -> Result<Self, Self::Error> {
+        cfg.check()
+    }
 }
 
 impl PdrConfig {
+    /// The config as [`Pdr`] takes it, once [`PdrConfig::validate`] passes.
+    pub fn check(self) -> Result<CheckedPdrConfig, wipdr_core::ConfigError> {
+        self.validate()?;
+        Ok(CheckedPdrConfig(self))
+    }
+
     /// Checks the values a config file could get wrong (NaN, negative, inverted limits).
-    pub fn validate(&self) -> Result<(), PdrConfigError> {
-        let bad = |field, reason| Err(PdrConfigError { field, reason });
+    /// Errors name the field's path under the PDR config (`detector.window_s`).
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
+        let bad = |field: &str, reason: String| Err(wipdr_core::ConfigError::new(field, reason));
         let (lo, hi) = (self.min_step_length, self.max_step_length);
         if !(lo.is_finite() && lo >= 0.0) {
             return bad(
@@ -161,9 +202,7 @@ impl PdrConfig {
                 format!("must be finite and >= min_step_length ({lo}), got {hi}"),
             );
         }
-        if let Err((field, reason)) = self.handling.validate() {
-            return bad(field, reason);
-        }
+        self.handling.validate()?;
         let d = &self.detector;
         for (field, v) in [
             ("detector.window_s", d.window_s),
@@ -189,9 +228,7 @@ impl PdrConfig {
                 format!("must be finite, got {}", self.heading.map_offset_rad),
             );
         }
-        if let Err((field, reason)) = self.heading.snap.validate() {
-            return bad(field, reason);
-        }
+        self.heading.snap.validate()?;
         Ok(())
     }
 
@@ -356,8 +393,9 @@ fn finite3(v: &[f64; 3]) -> bool {
 }
 
 impl Pdr {
-    /// A pipeline at rest.
-    pub fn new(cfg: PdrConfig) -> Self {
+    /// A pipeline at rest, on a checked config ([`PdrConfig::check`]).
+    pub fn new(cfg: CheckedPdrConfig) -> Self {
+        let cfg = cfg.into_inner();
         Self {
             detector: StepDetector::new(cfg.detector),
             gyro_att: GyroAttitude::new(cfg.heading.gyro),
@@ -643,7 +681,7 @@ impl Pdr {
     /// Runs the pipeline over a whole walk (streams merged in time order; at equal times the
     /// rotation vector, gyroscope and magnetometer come before the accelerometer, so a step
     /// sees the orientation of its own instant). Returns every step with its details.
-    pub fn run_detailed(cfg: PdrConfig, walk: &Walk) -> (Vec<StepDetail>, PdrDiagnostics) {
+    pub fn run_detailed(cfg: CheckedPdrConfig, walk: &Walk) -> (Vec<StepDetail>, PdrDiagnostics) {
         let mut pdr = Pdr::new(cfg);
         let imu = &walk.imu;
         let (acc, gyr, mag, rv) = (
@@ -685,11 +723,11 @@ impl Pdr {
     /// Runs the pipeline over a whole walk and returns its step events.
     ///
     /// ```
-    /// use wipdr_pdr::{Pdr, PdrConfig};
+    /// use wipdr_pdr::{CheckedPdrConfig, Pdr};
     /// let walk = wipdr_core::Walk::default();
-    /// assert!(Pdr::run(PdrConfig::default(), &walk).is_empty());
+    /// assert!(Pdr::run(CheckedPdrConfig::default(), &walk).is_empty());
     /// ```
-    pub fn run(cfg: PdrConfig, walk: &Walk) -> Vec<StepEvent> {
+    pub fn run(cfg: CheckedPdrConfig, walk: &Walk) -> Vec<StepEvent> {
         Self::run_detailed(cfg, walk)
             .0
             .into_iter()
@@ -711,11 +749,11 @@ mod config_tests {
             max_step_length: 0.5,
             ..PdrConfig::default()
         };
-        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "max_step_length");
         c.max_step_length = f64::NAN;
-        assert_eq!(c.validate().unwrap_err().field, "max_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "max_step_length");
         c.min_step_length = f64::NAN;
-        assert_eq!(c.validate().unwrap_err().field, "min_step_length");
+        assert_eq!(c.validate().unwrap_err().path, "min_step_length");
     }
 
     #[test]
@@ -723,26 +761,26 @@ mod config_tests {
         let mut c = PdrConfig::default();
         c.handling.release_rad_s = Some(3.5);
         let e = c.validate().unwrap_err();
-        assert_eq!(e.field, "handling.release_rad_s");
+        assert_eq!(e.path, "handling.release_rad_s");
         assert!(e.reason.contains("3.5"), "{}", e.reason);
         c.handling.release_rad_s = Some(1.5);
         assert!(c.validate().is_ok());
         c.handling.release_rad_s = Some(f64::NAN);
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_rad_s");
         c.handling.release_rad_s = Some(-1.0);
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_rad_s");
         c.handling.release_rad_s = None;
         c.handling.release_hold_s = f64::INFINITY;
-        assert_eq!(c.validate().unwrap_err().field, "handling.release_hold_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.release_hold_s");
         c.handling.release_hold_s = 4.0;
         c.handling.max_axis_share = 0.0;
-        assert_eq!(c.validate().unwrap_err().field, "handling.max_axis_share");
+        assert_eq!(c.validate().unwrap_err().path, "handling.max_axis_share");
         c.handling.max_axis_share = 0.85;
         c.handling.tumbling_rad_s = Some(f64::NAN);
-        assert_eq!(c.validate().unwrap_err().field, "handling.tumbling_rad_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.tumbling_rad_s");
         c.handling.tumbling_rad_s = Some(1.5);
         c.handling.axis_window_s = 0.0;
-        assert_eq!(c.validate().unwrap_err().field, "handling.axis_window_s");
+        assert_eq!(c.validate().unwrap_err().path, "handling.axis_window_s");
         // Gate off: a release is accepted (it is not used).
         c.handling = crate::handling::HandlingConfig::off();
         c.handling.release_rad_s = Some(2.0);

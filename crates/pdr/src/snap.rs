@@ -41,9 +41,9 @@ impl Default for HeadingSnapConfig {
 impl HeadingSnapConfig {
     /// Checks the values a config file could get wrong; the error names the field (under
     /// `heading.snap`) and the value.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
         if !self.orientation_rad.is_finite() {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "heading.snap.orientation_rad",
                 format!("must be finite, got {}", self.orientation_rad),
             ));
@@ -57,11 +57,14 @@ impl HeadingSnapConfig {
             ),
         ] {
             if !(v.is_finite() && v > 0.0 && v <= hi) {
-                return Err((field, format!("must be in (0, {hi}] degrees, got {v}")));
+                return Err(wipdr_core::ConfigError::new(
+                    field,
+                    format!("must be in (0, {hi}] degrees, got {v}"),
+                ));
             }
         }
         if self.window_steps == 0 {
-            return Err((
+            return Err(wipdr_core::ConfigError::new(
                 "heading.snap.window_steps",
                 "must be >= 1, got 0".to_string(),
             ));
@@ -228,7 +231,7 @@ mod tests {
                 ..Default::default()
             },
         ];
-        let fields: Vec<_> = bad.iter().map(|c| c.validate().unwrap_err().0).collect();
+        let fields: Vec<_> = bad.iter().map(|c| c.validate().unwrap_err().path).collect();
         assert_eq!(
             fields,
             [

@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 use wipdr_core::{RotationVectorSample, Vec3Sample, Walk};
-use wipdr_pdr::{HeadingSource, Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, HeadingSource, Pdr, PdrConfig};
 use wipdr_sim::{SimConfig, generate};
 
 fn sim_walk(seed: u64) -> Walk {
@@ -32,7 +32,7 @@ fn assert_sane(events: &[wipdr_core::StepEvent]) {
 #[test]
 fn without_gyroscope_falls_back_and_still_walks() {
     let mut walk = sim_walk(3);
-    let full = Pdr::run(PdrConfig::default(), &walk);
+    let full = Pdr::run(CheckedPdrConfig::default(), &walk);
     walk.imu.gyroscope.clear();
     let cfg = PdrConfig {
         heading: wipdr_pdr::HeadingConfig {
@@ -41,7 +41,7 @@ fn without_gyroscope_falls_back_and_still_walks() {
         },
         ..Default::default()
     };
-    let (steps, diag) = Pdr::run_detailed(cfg, &walk);
+    let (steps, diag) = Pdr::run_detailed(cfg.check().unwrap(), &walk);
     assert_eq!(
         steps.len(),
         full.len(),
@@ -65,7 +65,7 @@ fn without_magnetometer_or_rotation_vector() {
         },
         ..Default::default()
     };
-    let (steps, diag) = Pdr::run_detailed(cfg, &walk);
+    let (steps, diag) = Pdr::run_detailed(cfg.check().unwrap(), &walk);
     assert!(!steps.is_empty());
     // The KF runs on the gyro alone, started from gravity with heading 0.
     assert!(
@@ -83,7 +83,7 @@ fn only_accelerometer_gives_heading_zero_counted() {
     walk.imu.magnetometer.clear();
     walk.imu.rotation_vector.clear();
     walk.imu.gyroscope.clear();
-    let (steps, diag) = Pdr::run_detailed(PdrConfig::default(), &walk);
+    let (steps, diag) = Pdr::run_detailed(CheckedPdrConfig::default(), &walk);
     assert!(!steps.is_empty());
     assert_eq!(diag.steps_without_heading, steps.len());
     assert!(steps.iter().all(|s| s.event.heading == 0.0));
@@ -98,7 +98,7 @@ fn gap_splits_and_no_step_spans_it() {
         walk.imu.accelerometer[n / 2].t,
     );
     walk.imu.accelerometer.retain(|s| s.t < t0 || s.t > t1);
-    let (steps, diag) = Pdr::run_detailed(PdrConfig::default(), &walk);
+    let (steps, diag) = Pdr::run_detailed(CheckedPdrConfig::default(), &walk);
     assert!(diag.gaps >= 1);
     assert!(steps.iter().all(|s| s.event.t < t0 || s.event.t > t1));
     let after = steps
@@ -110,7 +110,7 @@ fn gap_splits_and_no_step_spans_it() {
 
 #[test]
 fn nan_repeated_and_backwards_samples_are_counted() {
-    let mut pdr = Pdr::new(PdrConfig::default());
+    let mut pdr = Pdr::new(CheckedPdrConfig::default());
     let acc = |t, z| Vec3Sample {
         t,
         v: [0.0, 0.0, z],
@@ -168,7 +168,7 @@ proptest! {
                 _ => { let s = v[i]; v.insert(i, s); }
             }
         }
-        let events = Pdr::run(PdrConfig::default(), &walk);
+        let events = Pdr::run(CheckedPdrConfig::default(), &walk);
         assert_sane(&events);
     }
 }

@@ -56,7 +56,7 @@ fn synthetic_acceptance() {
     // Calibrate the step length on the training walks' waypoints.
     let train_runs: Vec<(Vec<StepDetail>, &wipdr_core::Walk)> = train
         .iter()
-        .map(|(w, _)| (Pdr::run_detailed(cfg, w).0, w))
+        .map(|(w, _)| (Pdr::run_detailed(cfg.check().unwrap(), w).0, w))
         .collect();
     let walks: Vec<WalkSteps<'_>> = train_runs
         .iter()
@@ -81,7 +81,7 @@ fn synthetic_acceptance() {
     let mut worst_count = 0.0f64;
     let mut per_step_rel = Vec::new();
     for (walk, truth) in &test {
-        let (steps, diag) = Pdr::run_detailed(cfg, walk);
+        let (steps, diag) = Pdr::run_detailed(cfg.check().unwrap(), walk);
         assert_eq!(diag.steps_without_heading, 0);
         n_true += truth.steps.len();
         n_det += steps.len();
@@ -150,7 +150,7 @@ fn turn_threshold_sweep() {
         cfg.motion.turn_threshold_rad = t;
         let (mut tp_det, mut n_eps, mut tp_truth, mut n_turns) = (0, 0, 0, 0);
         for (walk, truth) in &walks {
-            let steps = Pdr::run_detailed(cfg, walk).0;
+            let steps = Pdr::run_detailed(cfg.check().unwrap(), walk).0;
             let eps = turn_episodes(&steps);
             let turns: Vec<(i64, i64)> = truth.turns.iter().map(|t| (t.t_start, t.t_end)).collect();
             n_eps += eps.len();

@@ -2,6 +2,7 @@
 
 use crate::PositioningError;
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 use wipdr_fingerprint::likelihood::LikelihoodConfig;
 use wipdr_fingerprint::{MatcherConfig, QueryFilter};
 use wipdr_fusion::SchemeConfig;
@@ -176,10 +177,10 @@ impl PositionerConfig {
             && let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str)
         {
             crate::merge::check_scheme_table(kind, t).map_err(|reason| {
-                PositioningError::InvalidConfig {
-                    path: format!("scheme.{}", reason.split(':').next().unwrap_or("")),
+                PositioningError::InvalidConfig(ConfigError::new(
+                    format!("scheme.{}", reason.split(':').next().unwrap_or("")),
                     reason,
-                }
+                ))
             })?;
         }
         let cfg: Self = crate::merge::from_value_onto(user, &Self::default())?;
@@ -189,48 +190,33 @@ impl PositionerConfig {
 
     /// Checks values (errors name the field path).
     pub fn validate(&self) -> Result<(), PositioningError> {
+        // Each part's check names its field; the paths below are where the part sits.
         self.matcher
             .validate()
-            .map_err(|e| PositioningError::InvalidConfig {
-                path: "matcher".into(),
-                reason: e.to_string(),
-            })?;
-        self.pdr
-            .validate()
-            .map_err(|e| PositioningError::InvalidConfig {
-                path: "pdr".into(),
-                reason: e.to_string(),
-            })?;
+            .map_err(wipdr_fingerprint::FingerprintError::into_config_error)?;
+        self.pdr.validate().map_err(|e| e.under("pdr"))?;
         self.scheme
             .validate()
-            .map_err(|e| PositioningError::InvalidConfig {
-                path: format!("scheme ({})", self.scheme.name()),
-                reason: e.to_string(),
-            })?;
+            .map_err(|e| e.into_config_error().under("scheme"))?;
         self.likelihood
             .check()
-            .map_err(|e| PositioningError::InvalidConfig {
-                path: "likelihood".into(),
-                reason: e.to_string(),
-            })?;
-        self.floor
-            .validate()
-            .map_err(|(path, reason)| PositioningError::InvalidConfig { path, reason })?;
+            .map_err(wipdr_fingerprint::FingerprintError::into_config_error)?;
+        self.floor.validate()?;
         if let Some(age) = self.query.max_age_ms
             && age < 0
         {
-            return Err(PositioningError::InvalidConfig {
-                path: "query.max_age_ms".into(),
-                reason: format!("must be >= 0, got {age}"),
-            });
+            return Err(PositioningError::InvalidConfig(ConfigError::new(
+                "query.max_age_ms",
+                format!("must be >= 0, got {age}"),
+            )));
         }
         if let Some(v) = self.query.min_rssi_dbm
             && !v.is_finite()
         {
-            return Err(PositioningError::InvalidConfig {
-                path: "query.min_rssi_dbm".into(),
-                reason: format!("must be finite, got {v}"),
-            });
+            return Err(PositioningError::InvalidConfig(ConfigError::new(
+                "query.min_rssi_dbm",
+                format!("must be finite, got {v}"),
+            )));
         }
         Ok(())
     }

@@ -16,14 +16,10 @@ pub enum PositioningError {
         /// Cause.
         source: wipdr_fusion::FusionError,
     },
-    /// A config value is out of range; `path` is the dotted config path.
-    #[error("{path}: {reason}")]
-    InvalidConfig {
-        /// Dotted path of the field (`scheme.r_wifi_m2`, `matcher.k`).
-        path: String,
-        /// What is wrong, with the value given.
-        reason: String,
-    },
+    /// A config value is out of range; its path is the dotted config path
+    /// (`scheme.r_wifi_m2`, `matcher.k`).
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// A config text could not be read (syntax, unknown field, wrong type).
     #[error("config: {0}")]
     Parse(String),

@@ -148,12 +148,12 @@ impl Default for FloorConfig {
 
 impl FloorConfig {
     /// Checks every field's range; the error names the field (`floor.<field>`).
-    pub fn validate(&self) -> Result<(), (String, String)> {
+    pub fn validate(&self) -> Result<(), wipdr_core::ConfigError> {
         let check = |name: &str, v: f64, lo: f64, hi: f64| {
             if v.is_finite() && v >= lo && v <= hi {
                 Ok(())
             } else {
-                Err((
+                Err(wipdr_core::ConfigError::new(
                     format!("floor.{name}"),
                     format!("{v} is outside [{lo}, {hi}]"),
                 ))
@@ -909,12 +909,12 @@ mod tests {
             hpa_per_floor: 0.0,
             ..FloorConfig::default()
         };
-        assert_eq!(c.validate().unwrap_err().0, "floor.hpa_per_floor");
+        assert_eq!(c.validate().unwrap_err().path, "floor.hpa_per_floor");
         let c = FloorConfig {
             min_change_floors: 0.2,
             ..FloorConfig::default()
         };
-        assert_eq!(c.validate().unwrap_err().0, "floor.min_change_floors");
+        assert_eq!(c.validate().unwrap_err().path, "floor.min_change_floors");
     }
 
     proptest! {

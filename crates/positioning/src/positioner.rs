@@ -8,6 +8,7 @@ use crate::{
     FloorConfig, FloorTracker, PositionEstimate, PositionerConfig, PositioningError, Site,
 };
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 use wipdr_core::MotionState;
 use wipdr_core::{
     Point2, RotationVectorSample, StepEvent, TimestampMs, Vec3Sample, Vector2, WifiObservation,
@@ -19,7 +20,7 @@ use wipdr_fusion::replay::{FusionInput, merged};
 use wipdr_fusion::static_start::StaticStart;
 use wipdr_fusion::{Fuser, MapMatched, SchemeConfig};
 use wipdr_pdr::odometry::{self, LearnedOdometry, OdometryStream};
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr};
 
 /// The largest device RSS offset the likelihood's online estimate may reach, dB (phones
 /// differ from one another by up to about 10-15 dB).
@@ -145,7 +146,7 @@ impl std::fmt::Debug for Frontend {
 
 impl Frontend {
     /// A front end over a built matcher, with the default [`FloorConfig`].
-    pub fn new(pdr: PdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
+    pub fn new(pdr: CheckedPdrConfig, matcher: Box<dyn OnlineMatcher>) -> Self {
         Self::with_floor_config(pdr, matcher, FloorConfig::default())
     }
 
@@ -155,7 +156,7 @@ impl Frontend {
     /// ([`WifiObservation::on_floor`]; a fix with none there is dropped and counted) unless
     /// [`FloorConfig::fixes_across_floors`].
     pub fn with_floor_config(
-        pdr: PdrConfig,
+        pdr: CheckedPdrConfig,
         matcher: Box<dyn OnlineMatcher>,
         floor: FloorConfig,
     ) -> Self {
@@ -209,10 +210,7 @@ impl Frontend {
             Odometry::Steps => None,
             Odometry::Learned => {
                 let model = LearnedOdometry::shipped_shared().map_err(|e| {
-                    PositioningError::InvalidConfig {
-                        path: "odometry".into(),
-                        reason: e.to_string(),
-                    }
+                    PositioningError::InvalidConfig(ConfigError::new("odometry", e.to_string()))
                 })?;
                 Some(Box::new(LearnedMotion {
                     stream: OdometryStream::new(model),
@@ -458,10 +456,7 @@ impl FusionStage {
                 source,
             })?;
         if let Some(ss) = config.static_start.as_ref().filter(|_| start.is_none()) {
-            ss.validate().map_err(|e| PositioningError::InvalidConfig {
-                path: "static_start".into(),
-                reason: e.to_string(),
-            })?;
+            ss.validate().map_err(|e| e.into_config_error())?;
             fuser = Box::new(StaticStart::new(fuser, ss.clone()));
         }
         if config.map_matching {
@@ -594,18 +589,18 @@ impl Positioner {
     ) -> Result<Self, PositioningError> {
         config.validate()?;
         if matcher.config() != &config.matcher {
-            return Err(PositioningError::InvalidConfig {
-                path: "matcher".into(),
-                reason: format!(
+            return Err(PositioningError::InvalidConfig(ConfigError::new(
+                "matcher",
+                format!(
                     "the config names the matcher {:?} but the one given was built from {:?}: build it with `config.matcher.build(map)`",
                     config.matcher.kind(),
                     matcher.config().kind()
                 ),
-            });
+            )));
         }
         Ok(Self {
             frontend: Frontend::with_floor_config(
-                config.pdr,
+                config.pdr.check().map_err(|e| e.under("pdr"))?,
                 matcher.stream(config.query),
                 config.floor,
             )
@@ -675,15 +670,13 @@ impl Positioner {
     /// `wipdr eval --offline` scores). The live estimate is not changed. Errors for a
     /// positioner built [`from_stages`](Positioner::from_stages) or with a known start.
     pub fn smooth(&self) -> Result<Vec<PositionEstimate>, PositioningError> {
-        let sm = self
-            .smoothing
-            .as_ref()
-            .ok_or_else(|| PositioningError::InvalidConfig {
-                path: "smooth".into(),
-                reason: "this positioner was built from stages or with a known start; \
-                         build it with Positioner::new without a start to smooth"
-                    .into(),
-            })?;
+        let sm = self.smoothing.as_ref().ok_or_else(|| {
+            PositioningError::InvalidConfig(ConfigError::new(
+                "smooth",
+                "this positioner was built from stages or with a known start; \
+                         build it with Positioner::new without a start to smooth",
+            ))
+        })?;
         // The fixes' likelihoods made again from their scans, as the live stream made them.
         let fixes: Vec<WifiObservation> = match &sm.site.likelihood {
             Some(model) if sm.fix_scans.iter().any(Option::is_some) => sm

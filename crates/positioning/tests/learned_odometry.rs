@@ -46,7 +46,7 @@ fn learned_motion_events_are_the_networks_outputs_in_the_map_frame() {
     assert_eq!(config.odometry, Odometry::Learned);
     let test = walk(0);
     let mut frontend = Frontend::with_floor_config(
-        config.pdr,
+        config.pdr.check().unwrap(),
         model.matcher().stream(config.query),
         config.floor,
     )
@@ -123,7 +123,7 @@ fn steps_stay_the_default_and_carry_no_covariance() {
     let config = model.config();
     assert_eq!(config.odometry, Odometry::Steps);
     let mut frontend = Frontend::with_floor_config(
-        config.pdr,
+        config.pdr.check().unwrap(),
         model.matcher().stream(config.query),
         config.floor,
     );

@@ -5,6 +5,7 @@
 
 use crate::SimError;
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 
 /// The whole simulator configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -67,8 +68,9 @@ impl Default for SimConfig {
 impl SimConfig {
     /// Checks the values a generator divides by or samples from.
     pub fn validate(&self) -> Result<(), SimError> {
-        let bad =
-            |field: &'static str, why: &'static str| Err(SimError::InvalidConfig { field, why });
+        let bad = |field: &'static str, why: &'static str| {
+            Err(SimError::InvalidConfig(ConfigError::new(field, why)))
+        };
         let positive = [
             ("duration_s", self.duration_s),
             ("trajectory_rate_hz", self.trajectory_rate_hz),
@@ -547,10 +549,7 @@ mod tests {
         c.scan.interval_s = 0.0;
         assert!(matches!(
             c.validate(),
-            Err(SimError::InvalidConfig {
-                field: "scan.interval_s",
-                ..
-            })
+            Err(SimError::InvalidConfig(e)) if e.path == "scan.interval_s"
         ));
         let c = SimConfig {
             gross_error_rate: 1.5,
@@ -558,10 +557,7 @@ mod tests {
         };
         assert!(matches!(
             c.validate(),
-            Err(SimError::InvalidConfig {
-                field: "gross_error_rate",
-                ..
-            })
+            Err(SimError::InvalidConfig(e)) if e.path == "gross_error_rate"
         ));
         let mut c = SimConfig::default();
         c.imu.timestamp_jitter_ms = 15.0;

@@ -9,6 +9,7 @@
 
 use crate::SimError;
 use crate::config::FloorConfig;
+use wipdr_core::ConfigError;
 use wipdr_core::{FloorPlan, Point2, Polygon, Segment, Unit};
 
 /// An axis-aligned rectangle `[x0, x1] x [y0, y1]`.
@@ -75,25 +76,25 @@ impl SimFloorPlan {
         let (w, h) = (cfg.width_m, cfg.height_m);
         let half = cfg.corridor_width_m / 2.0;
         if cfg.lane_offset_m < 0.0 || cfg.lane_offset_m + 0.2 >= half {
-            return Err(SimError::InvalidConfig {
-                field: "floor.lane_offset_m",
-                why: "must be in [0, corridor half width - 0.2)",
-            });
+            return Err(SimError::InvalidConfig(ConfigError::new(
+                "floor.lane_offset_m",
+                "must be in [0, corridor half width - 0.2)",
+            )));
         }
         let [hx0, hx1] = cfg.hall_x_fraction;
         if !(0.0 < hx0 && hx0 < 0.5 && 0.5 < hx1 && hx1 < 1.0) {
-            return Err(SimError::InvalidConfig {
-                field: "floor.hall_x_fraction",
-                why: "must satisfy 0 < from < 0.5 < to < 1",
-            });
+            return Err(SimError::InvalidConfig(ConfigError::new(
+                "floor.hall_x_fraction",
+                "must satisfy 0 < from < 0.5 < to < 1",
+            )));
         }
         let xs = [w / 12.0, w / 2.0, w * 11.0 / 12.0];
         let ys = [h * 3.0 / 16.0, h / 2.0, h * 13.0 / 16.0];
         if xs[0] - half < 1.0 || ys[0] - half < 1.0 || xs[1] - xs[0] < 4.0 * half {
-            return Err(SimError::InvalidConfig {
-                field: "floor.corridor_width_m",
-                why: "too wide for the floor size",
-            });
+            return Err(SimError::InvalidConfig(ConfigError::new(
+                "floor.corridor_width_m",
+                "too wide for the floor size",
+            )));
         }
         let mut walkable = Vec::new();
         for &y in &ys {
@@ -119,10 +120,10 @@ impl SimFloorPlan {
             y1: ys[2] - half,
         };
         if hall.x0 <= xs[0] + half || hall.x1 >= xs[2] - half {
-            return Err(SimError::InvalidConfig {
-                field: "floor.hall_x_fraction",
-                why: "the hall must lie between the outer corridors",
-            });
+            return Err(SimError::InvalidConfig(ConfigError::new(
+                "floor.hall_x_fraction",
+                "the hall must lie between the outer corridors",
+            )));
         }
         walkable.push(hall);
         let is_walkable = |p: Point2| walkable.iter().any(|r| r.contains(p));

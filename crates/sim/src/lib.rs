@@ -87,14 +87,9 @@ use wipdr_core::{CoreError, Point2, TimestampMs, Walk, WalkMeta, Waypoint, angle
 /// Errors of the simulator.
 #[derive(Debug, Error)]
 pub enum SimError {
-    /// A configuration value is out of range.
-    #[error("invalid simulator config: {field} {why}")]
-    InvalidConfig {
-        /// Dotted path of the field.
-        field: &'static str,
-        /// What is wrong.
-        why: &'static str,
-    },
+    /// A configuration value is out of range (the dotted path of the field and why).
+    #[error("simulator config {0}")]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
     /// Building a core value failed.
     #[error(transparent)]
     Core(#[from] CoreError),

@@ -12,7 +12,7 @@ use wipdr_core::angle::step_displacement;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, calibrate_config};
 use wipdr_pdr::odometry::features::{CHANNELS, ImuGrid, WINDOW};
 use wipdr_pdr::odometry::{INTERVAL_MS, rotate_heading};
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr, PdrConfig};
 
 /// Folds of the evaluation protocol within a floor (walks sorted by id, walk i in fold i % 5).
 pub const FOLDS: usize = 5;
@@ -108,8 +108,8 @@ fn displacement_of_steps(ev: &[wipdr_core::StepEvent], t_a: i64, t_b: i64) -> [f
     [d.x, d.y]
 }
 
-fn extract_floor(name: &str, walks: &[Walk]) -> Vec<WalkRec> {
-    let base = base_pdr();
+fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
+    let base = base_pdr().check().context("the base PDR config")?;
     let cal = CalibrationConfig::default();
     // walks come sorted by id: fold = rank % 5
     let runs: Vec<_> = walks
@@ -127,10 +127,15 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Vec<WalkRec> {
     };
     let (all_cfg, _) = calibrate_config(&base, &cal, &steps_of(&|_| true));
     let offset_floor = all_cfg.heading.map_offset_rad;
-    let fold_cfgs: Vec<PdrConfig> = (0..FOLDS)
-        .map(|f| calibrate_config(&base, &cal, &steps_of(&|i| i % FOLDS != f)).0)
-        .collect();
-    walks
+    let fold_cfgs: Vec<CheckedPdrConfig> = (0..FOLDS)
+        .map(|f| {
+            calibrate_config(&base, &cal, &steps_of(&|i| i % FOLDS != f))
+                .0
+                .check()
+        })
+        .collect::<Result<_, _>>()
+        .context("a calibrated PDR config")?;
+    Ok(walks
         .par_iter()
         .enumerate()
         .filter_map(|(i, w)| {
@@ -185,7 +190,7 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Vec<WalkRec> {
             }
             Some(rec)
         })
-        .collect()
+        .collect())
 }
 
 /// Reads every floor under `root` (through the io cache in `cache/io`) and extracts the
@@ -204,7 +209,7 @@ pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
             .with_context(|| format!("reading {}", d.display()))?;
         let name = fd.name.clone();
         let walks: Vec<Walk> = fd.walks.into_iter().map(|p| p.walk).collect();
-        let recs = extract_floor(&name, &walks);
+        let recs = extract_floor(&name, &walks)?;
         eprintln!(
             "{name}: {} walks read, {} kept, {} windows, {} segments",
             walks.len(),

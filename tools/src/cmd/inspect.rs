@@ -42,8 +42,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         options.limits =
             toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-        if let Err((field, reason)) = options.limits.validate() {
-            anyhow::bail!("{}: {field}: {reason}", path.display());
+        if let Err(e) = options.limits.validate() {
+            anyhow::bail!("{}: {e}", path.display());
         }
     }
     if !(args.gap_m.is_finite() && args.gap_m > 0.0) {

@@ -63,35 +63,27 @@ pub(crate) fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result
 fn read_checked<T, F>(path: Option<&Path>, check: F) -> Result<T>
 where
     T: Default + serde::de::DeserializeOwned,
-    F: FnOnce(&T) -> Option<(String, String)>,
+    F: FnOnce(&T) -> Result<(), wipdr_core::ConfigError>,
 {
     let Some(path) = path else {
         return Ok(T::default());
     };
     let cfg: T = read_config(path)?;
-    if let Some((field, reason)) = check(&cfg) {
-        anyhow::bail!("{}: {field}: {reason}", path.display());
+    if let Err(e) = check(&cfg) {
+        anyhow::bail!("{}: {e}", path.display());
     }
     Ok(cfg)
 }
 
 /// The PDR config of `path` (defaults without one), checked by [`PdrConfig::validate`].
 pub(crate) fn read_pdr_config(path: Option<&Path>) -> Result<PdrConfig> {
-    read_checked(path, |cfg: &PdrConfig| {
-        cfg.validate()
-            .err()
-            .map(|e| (e.field.to_string(), e.reason.to_string()))
-    })
+    read_checked(path, PdrConfig::validate)
 }
 
 /// The calibration settings of `path` (defaults without one), checked by
 /// [`CalibrationConfig::validate`].
 pub(crate) fn read_calibration(path: Option<&Path>) -> Result<CalibrationConfig> {
-    read_checked(path, |cal: &CalibrationConfig| {
-        cal.validate()
-            .err()
-            .map(|(field, reason)| (field.to_string(), reason.to_string()))
-    })
+    read_checked(path, CalibrationConfig::validate)
 }
 
 /// Reads floor folders (through the cache of this run, `--cache-dir` / `--no-cache`).
@@ -111,9 +103,12 @@ pub(crate) fn read_floors(dirs: &[PathBuf]) -> Result<Vec<FloorData>> {
 }
 
 /// Runs `cfg` over every walk of a floor (parallel), with folds.
-pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Vec<WalkRun> {
+pub(crate) fn run_floor(floor: &FloorData, cfg: &PdrConfig) -> Result<Vec<WalkRun>> {
+    let cfg = cfg
+        .check()
+        .map_err(|e| anyhow::anyhow!("PDR config: {e}"))?;
     let walks: Vec<&wipdr_core::Walk> = floor.walks.iter().map(|w| &w.walk).collect();
-    run_walks(&walks, cfg)
+    Ok(run_walks(&walks, &cfg))
 }
 
 /// Median and p90 of absolute values.
@@ -229,8 +224,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut steps_info = BTreeMap::new();
     let pb = crate::progress::bar(floors.len() as u64, "floors");
     for floor in &floors {
-        let base_runs = run_floor(floor, &base_cfg);
-        let runs = run_floor(floor, &cfg);
+        let base_runs = run_floor(floor, &base_cfg)?;
+        let runs = run_floor(floor, &cfg)?;
         steps_info.insert(
             floor.name.clone(),
             (runs.iter().map(|r| r.steps.len()).sum(), runs.len()),

@@ -120,7 +120,10 @@ pub fn run(args: Args) -> Result<()> {
         anyhow::bail!("--wifi-mean-error must be > 0");
     }
     let floors = read_floors(&args.data)?;
-    let floor_runs: Vec<Vec<WalkRun>> = floors.iter().map(|f| run_floor(f, &run_cfg)).collect();
+    let floor_runs: Vec<Vec<WalkRun>> = floors
+        .iter()
+        .map(|f| run_floor(f, &run_cfg))
+        .collect::<Result<_>>()?;
     let train: Vec<WalkSteps<'_>> = floor_runs
         .iter()
         .flat_map(|r| train_of(r, args.fold))

@@ -173,14 +173,19 @@ impl KnnMatcher {
             return Err(FingerprintError::EmptyMap);
         }
         if config.k == 0 {
-            return Err(FingerprintError::InvalidConfig("k must be >= 1".into()));
+            return Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new("k", "must be >= 1"),
+            ));
         }
         if let Weighting::InverseDistance { power } = config.weighting
             && !(power.is_finite() && power >= 0.0)
         {
-            return Err(FingerprintError::InvalidConfig(format!(
-                "weight power must be finite and >= 0, got {power}"
-            )));
+            return Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new(
+                    "weighting.power",
+                    format!("must be finite and >= 0, got {power}"),
+                ),
+            ));
         }
         if let Metric::SharedAp(d) = config.metric
             && !(d.lambda.is_finite()
@@ -190,10 +195,15 @@ impl KnnMatcher {
                 && d.detection_mid_db.is_finite()
                 && d.detection_mid_db >= 0.0)
         {
-            return Err(FingerprintError::InvalidConfig(format!(
-                "shared_ap lambda, max_offset_db and detection_mid_db must be finite and >= 0, got {}, {} and {}",
-                d.lambda, d.max_offset_db, d.detection_mid_db
-            )));
+            return Err(FingerprintError::InvalidConfig(
+                wipdr_core::ConfigError::new(
+                    "distance",
+                    format!(
+                        "shared_ap lambda, max_offset_db and detection_mid_db must be finite and >= 0, got {}, {} and {}",
+                        d.lambda, d.max_offset_db, d.detection_mid_db
+                    ),
+                ),
+            ));
         }
         let transform = Transform::new(
             config.representation,
@@ -664,7 +674,7 @@ impl FloorFirstMatcher {
     pub fn new(inner: KnnMatcher, votes: usize) -> Result<Self, FingerprintError> {
         if votes == 0 {
             return Err(FingerprintError::InvalidConfig(
-                "floor-first: votes must be >= 1".into(),
+                wipdr_core::ConfigError::new("floor_votes", "floor-first: votes must be >= 1"),
             ));
         }
         Ok(Self { inner, votes })

@@ -239,7 +239,7 @@ fn bad_config_rejected() {
     };
     assert!(matches!(
         KnnMatcher::new(map.clone(), bad_offset),
-        Err(FingerprintError::InvalidConfig(m)) if m.contains("max_offset_db")
+        Err(FingerprintError::InvalidConfig(m)) if m.reason.contains("max_offset_db")
     ));
     let bad_detection = KnnConfig {
         metric: Metric::SharedAp(crate::distance::SharedAp {
@@ -250,7 +250,7 @@ fn bad_config_rejected() {
     };
     assert!(matches!(
         KnnMatcher::new(map.clone(), bad_detection),
-        Err(FingerprintError::InvalidConfig(m)) if m.contains("detection_mid_db")
+        Err(FingerprintError::InvalidConfig(m)) if m.reason.contains("detection_mid_db")
     ));
     let empty = RadioMap::new(map.vocabulary().clone(), RadioMapConfig::default());
     assert!(matches!(

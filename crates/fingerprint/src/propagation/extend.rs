@@ -83,12 +83,15 @@ pub fn extend_radio_map(
     );
     let (nx, ny) = (i1 - i0 + 1.0, j1 - j0 + 1.0);
     if !(nx * ny).is_finite() || nx * ny > cfg.max_points as f64 {
-        return Err(invalid(format!(
-            "propagation: the lattice has {} points (cell {c} m), over \
+        return Err(invalid(
+            "propagation.max_points",
+            format!(
+                "the lattice has {} points (cell {c} m), over \
              propagation.max_points = {}",
-            nx * ny,
-            cfg.max_points
-        )));
+                nx * ny,
+                cfg.max_points
+            ),
+        ));
     }
     let (i0, j0, nx, ny) = (i0 as i64, j0 as i64, nx as usize, ny as usize);
     report.lattice_points = nx * ny;

@@ -257,17 +257,18 @@ impl Default for PropagationConfig {
     }
 }
 
-fn invalid(msg: String) -> FingerprintError {
-    FingerprintError::InvalidConfig(msg)
+fn invalid(path: impl Into<String>, reason: String) -> FingerprintError {
+    FingerprintError::InvalidConfig(wipdr_core::ConfigError::new(path, reason))
 }
 
 fn positive(name: &str, v: f64) -> Result<(), FingerprintError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(invalid(format!(
-            "propagation.{name} must be positive, got {v}"
-        )))
+        Err(invalid(
+            format!("propagation.{name}"),
+            format!("must be positive, got {v}"),
+        ))
     }
 }
 
@@ -275,9 +276,10 @@ fn non_negative(name: &str, v: f64) -> Result<(), FingerprintError> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(invalid(format!(
-            "propagation.{name} must be finite and >= 0, got {v}"
-        )))
+        Err(invalid(
+            format!("propagation.{name}"),
+            format!("must be finite and >= 0, got {v}"),
+        ))
     }
 }
 
@@ -285,34 +287,41 @@ impl PropagationConfig {
     /// Checks the values; the error names the offending field.
     pub fn validate(&self) -> Result<(), FingerprintError> {
         if self.min_samples < 4 {
-            return Err(invalid(format!(
-                "propagation.min_samples must be >= 4 (four model parameters), got {}",
-                self.min_samples
-            )));
+            return Err(invalid(
+                "propagation.min_samples",
+                format!(
+                    "must be >= 4 (four model parameters), got {}",
+                    self.min_samples
+                ),
+            ));
         }
         let [lo, hi] = self.exponent_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-            return Err(invalid(format!(
-                "propagation.exponent_range must be finite with 0 < low <= high, got [{lo}, {hi}]"
-            )));
+            return Err(invalid(
+                "propagation.exponent_range",
+                format!("must be finite with 0 < low <= high, got [{lo}, {hi}]"),
+            ));
         }
         positive("max_rmse_db", self.max_rmse_db)?;
         positive("max_extrapolation_m", self.max_extrapolation_m)?;
         non_negative("max_ap_outside_m", self.max_ap_outside_m)?;
         if self.init_strongest == 0 {
-            return Err(invalid("propagation.init_strongest must be >= 1".into()));
+            return Err(invalid("propagation.init_strongest", "must be >= 1".into()));
         }
         non_negative("start_offset_m", self.start_offset_m)?;
         non_negative("censored_weight", self.censored_weight)?;
         if !(self.detection_dbm >= MIN_VALID_RSSI_DBM && self.detection_dbm <= MAX_VALID_RSSI_DBM) {
-            return Err(invalid(format!(
-                "propagation.detection_dbm must lie in [{MIN_VALID_RSSI_DBM}, \
+            return Err(invalid(
+                "propagation.detection_dbm",
+                format!(
+                    "must lie in [{MIN_VALID_RSSI_DBM}, \
                  {MAX_VALID_RSSI_DBM}] dBm, got {}",
-                self.detection_dbm
-            )));
+                    self.detection_dbm
+                ),
+            ));
         }
         if self.max_iterations == 0 {
-            return Err(invalid("propagation.max_iterations must be >= 1".into()));
+            return Err(invalid("propagation.max_iterations", "must be >= 1".into()));
         }
         positive("cell_m", self.cell_m)?;
         non_negative("min_gap_m", self.min_gap_m)?;
@@ -320,29 +329,32 @@ impl PropagationConfig {
         if !(self.min_predicted_dbm >= MIN_VALID_RSSI_DBM
             && self.min_predicted_dbm <= MAX_VALID_RSSI_DBM)
         {
-            return Err(invalid(format!(
-                "propagation.min_predicted_dbm must lie in [{MIN_VALID_RSSI_DBM}, \
+            return Err(invalid(
+                "propagation.min_predicted_dbm",
+                format!(
+                    "must lie in [{MIN_VALID_RSSI_DBM}, \
                  {MAX_VALID_RSSI_DBM}] dBm, got {}",
-                self.min_predicted_dbm
-            )));
+                    self.min_predicted_dbm
+                ),
+            ));
         }
         if self.min_aps == 0 {
-            return Err(invalid("propagation.min_aps must be >= 1".into()));
+            return Err(invalid("propagation.min_aps", "must be >= 1".into()));
         }
         if let Some(k) = self.max_aps
             && k < self.min_aps
         {
-            return Err(invalid(format!(
-                "propagation.max_aps ({k}) must be >= min_aps ({})",
-                self.min_aps
-            )));
+            return Err(invalid(
+                "propagation.max_aps",
+                format!("({k}) must be >= min_aps ({})", self.min_aps),
+            ));
         }
         let ceiling = crate::interpolate::MAX_SPATIAL_POINTS_CEILING;
         if !(1..=ceiling).contains(&self.max_points) {
-            return Err(invalid(format!(
-                "propagation.max_points must be in 1..={ceiling}, got {}",
-                self.max_points
-            )));
+            return Err(invalid(
+                "propagation.max_points",
+                format!("must be in 1..={ceiling}, got {}", self.max_points),
+            ));
         }
         Ok(())
     }

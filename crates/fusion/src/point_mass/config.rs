@@ -1,6 +1,7 @@
 //! The config of `pmf` and its checks.
 
 use serde::{Deserialize, Serialize};
+use wipdr_core::ConfigError;
 
 use crate::FusionError;
 
@@ -134,20 +135,6 @@ pub struct PointMassConfig {
     /// with 0.5 IPIN causal is 6.69 / EvAAL 9.28 but offline EvAAL 7.03 against 6.38);
     /// `paper()`: 0.5.
     pub off_trail_likelihood: f64,
-    /// Rate of the fast running mean of the fixes' evidence (their likelihood under the
-    /// prior), per fix, in `[0, 1]`; 0 turns sensor resetting off. When the fast mean drops
-    /// below the slow one (the fixes keep disagreeing with the posterior: a wrong placement),
-    /// a share `1 - fast / slow` (at most `max_reset_share`) of the posterior is replaced by
-    /// the fix's Gaussian (sensor-resetting localisation, Lenser and Veloso 2000; the
-    /// fast / slow evidence ratio of augmented MCL, Thrun et al., Probabilistic Robotics 8.3.5).
-    /// Off by default: on both buildings it follows biased fixes out of good placements
-    /// (0.3 / 0.03 / 0.1: ILC causal 5.10 -> 5.13, IPIN 7.00 -> 8.67; `docs/experiments.md`,
-    /// `docs/sweeps/pmf-sensor-reset.toml`). For streams whose placement can be lost.
-    pub evidence_fast_rate: f64,
-    /// Rate of the slow running mean of the fixes' evidence, per fix, in `[0, 1]`.
-    pub evidence_slow_rate: f64,
-    /// Largest share of the posterior one fix may reset, in `[0, 1]`.
-    pub max_reset_share: f64,
     /// Weigh the cells by the scan's likelihood over the floor
     /// ([`wipdr_core::WifiLikelihood`], when the fix carries one) instead of the robust
     /// Gaussian about the fix: a scan that fits two places keeps both until the walk's shape
@@ -202,9 +189,6 @@ impl Default for PointMassConfig {
             trail_sd_m: 0.0,
             planless_trail_sd_m: 6.0,
             off_trail_likelihood: 0.8,
-            evidence_fast_rate: 0.0,
-            evidence_slow_rate: 0.05,
-            max_reset_share: 0.3,
             wifi_likelihood: true,
             likelihood_share: 0.5,
         }
@@ -244,10 +228,10 @@ impl PointMassConfig {
         ];
         for (field, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and > 0, got {v}"),
-                });
+                    format!("must be finite and > 0, got {v}"),
+                )));
             }
         }
         let non_negative = [
@@ -268,55 +252,55 @@ impl PointMassConfig {
         let lattices =
             self.heading_hypotheses_deg.len().max(1) * self.step_scale_hypotheses.len().max(1);
         if lattices > super::mixture::MAX_HEADING_HYPOTHESES {
-            return Err(FusionError::InvalidConfig {
-                field: if self.step_scale_hypotheses.is_empty() {
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                if self.step_scale_hypotheses.is_empty() {
                     "heading_hypotheses_deg"
                 } else {
                     "step_scale_hypotheses"
                 },
-                reason: format!(
+                format!(
                     "at most {} hypotheses (heading x step scale), got {} x {}",
                     super::mixture::MAX_HEADING_HYPOTHESES,
                     self.heading_hypotheses_deg.len().max(1),
                     self.step_scale_hypotheses.len().max(1)
                 ),
-            });
+            )));
         }
         if let Some(k) = self
             .step_scale_hypotheses
             .iter()
             .find(|k| !(k.is_finite() && (0.5..=2.0).contains(*k)))
         {
-            return Err(FusionError::InvalidConfig {
-                field: "step_scale_hypotheses",
-                reason: format!("every entry must be within [0.5, 2], got {k}"),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "step_scale_hypotheses",
+                format!("every entry must be within [0.5, 2], got {k}"),
+            )));
         }
         if let Some(h) = self
             .heading_hypotheses_deg
             .iter()
             .find(|h| !(h.is_finite() && h.abs() <= 180.0))
         {
-            return Err(FusionError::InvalidConfig {
-                field: "heading_hypotheses_deg",
-                reason: format!("every entry must be within [-180, 180], got {h}"),
-            });
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "heading_hypotheses_deg",
+                format!("every entry must be within [-180, 180], got {h}"),
+            )));
         }
         if !(self.heading_offset_deg.is_finite() && self.heading_offset_deg.abs() <= 180.0) {
-            return Err(FusionError::InvalidConfig {
-                field: "heading_offset_deg",
-                reason: format!(
+            return Err(FusionError::InvalidConfig(ConfigError::new(
+                "heading_offset_deg",
+                format!(
                     "must be within [-180, 180], got {}",
                     self.heading_offset_deg
                 ),
-            });
+            )));
         }
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be finite and >= 0, got {v}"),
-                });
+                    format!("must be finite and >= 0, got {v}"),
+                )));
             }
         }
         let probabilities = [
@@ -329,23 +313,18 @@ impl PointMassConfig {
         ];
         for (field, v) in probabilities {
             if !(v.is_finite() && v > 0.0 && v <= 1.0) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be in (0, 1], got {v}"),
-                });
+                    format!("must be in (0, 1], got {v}"),
+                )));
             }
         }
-        for (field, v) in [
-            ("evidence_fast_rate", self.evidence_fast_rate),
-            ("evidence_slow_rate", self.evidence_slow_rate),
-            ("max_reset_share", self.max_reset_share),
-            ("likelihood_share", self.likelihood_share),
-        ] {
+        for (field, v) in [("likelihood_share", self.likelihood_share)] {
             if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
-                return Err(FusionError::InvalidConfig {
+                return Err(FusionError::InvalidConfig(ConfigError::new(
                     field,
-                    reason: format!("must be in [0, 1], got {v}"),
-                });
+                    format!("must be in [0, 1], got {v}"),
+                )));
             }
         }
         self.radius.validate()

@@ -133,32 +133,9 @@ impl PointMassFilter {
         }
         let total = self.weigh_fix(obs);
         self.normalise(Some(total));
-        if let Some(share) = self.reset_share(total) {
-            self.reset_towards(obs.estimate, self.cfg.wifi_sd_m, share);
-        }
         self.choose_mode();
         self.reporting = true;
         true
-    }
-
-    /// The share of the posterior to reset towards the fix whose evidence (likelihood under
-    /// the prior) was `evidence`, from the fast and slow running means of the fixes'
-    /// evidence; `None` when off or nothing to reset.
-    fn reset_share(&mut self, evidence: f64) -> Option<f64> {
-        let (fast_rate, slow_rate) = (self.cfg.evidence_fast_rate, self.cfg.evidence_slow_rate);
-        if fast_rate <= 0.0 || !(evidence.is_finite() && evidence > 0.0) {
-            return None;
-        }
-        let (fast, slow) = match self.evidence_means {
-            None => (evidence, evidence),
-            Some((f, s)) => (
-                f + fast_rate * (evidence - f),
-                s + slow_rate * (evidence - s),
-            ),
-        };
-        self.evidence_means = Some((fast, slow));
-        let share = (1.0 - fast / slow).min(self.cfg.max_reset_share);
-        (share.is_finite() && share > 0.0).then_some(share)
     }
 
     /// The trails' width in the step weight: `trail_sd_m` when set, else

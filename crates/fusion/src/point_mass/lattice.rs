@@ -56,42 +56,6 @@ impl PointMassFilter {
         self.choose_mode();
     }
 
-    /// Replaces share `share` of the posterior by a Gaussian (sd `sd`, metres) about the
-    /// position `f` (sensor resetting); the whole lattice is the window meanwhile, then
-    /// normalised as after any input.
-    pub(super) fn reset_towards(&mut self, f: Point2, sd: f64, share: f64) {
-        if !(self.initialised && share > 0.0 && sd > 0.0) {
-            return;
-        }
-        let (x0, x1, y0, y1) = self.active;
-        let (nx, ny) = self.lattice.dims();
-        let inv = 1.0 / (2.0 * sd * sd);
-        let target = f.coords - self.pdr;
-        let mut gauss_sum = 0.0;
-        for r in 0..ny {
-            let dy = self.lattice.centre_y(r) - target.y;
-            for c in 0..nx {
-                let i = r * nx + c;
-                if !(x0..=x1).contains(&c) || !(y0..=y1).contains(&r) {
-                    self.prob[i] = self.bg;
-                }
-                let dx = self.lattice.centre_x(c) - target.x;
-                let g = (-(dx * dx + dy * dy) * inv).exp();
-                self.scratch[i] = g;
-                gauss_sum += g;
-            }
-        }
-        self.active = (0, nx - 1, 0, ny - 1);
-        if !(gauss_sum.is_finite() && gauss_sum > 0.0) {
-            return;
-        }
-        let k = share / gauss_sum;
-        for (v, g) in self.prob.iter_mut().zip(&self.scratch) {
-            *v = (1.0 - share) * *v + k * g;
-        }
-        self.normalise(None);
-    }
-
     pub(super) fn offset_of(&self, i: usize) -> Vector2 {
         self.lattice.centre_of_index(i).coords
     }

@@ -80,6 +80,7 @@ mod smoother;
 mod tests;
 
 use std::sync::Arc;
+use wipdr_core::ConfigError;
 
 use wipdr_core::{GridError, GridSpec, Point2, TimestampMs, Vector2};
 
@@ -126,8 +127,6 @@ pub struct PointMassFilter {
     walked_since_fix: f64,
     /// Log of the inputs' marginal likelihood so far ([`PointMassFilter::log_evidence`]).
     log_evidence: f64,
-    /// Fast and slow running means of the fixes' evidence (sensor resetting).
-    evidence_means: Option<(f64, f64)>,
     initialised: bool,
     reporting: bool,
     /// The fixes' error variance learned from their residuals (the reported radius).
@@ -154,10 +153,7 @@ const NO_CELL: usize = usize::MAX;
 
 /// A raster look-up error as a config error of `field`.
 fn grid_error(field: &'static str, what: &'static str) -> impl Fn(GridError) -> FusionError {
-    move |e| FusionError::InvalidConfig {
-        field,
-        reason: format!("{what}: {e}"),
-    }
+    move |e| FusionError::InvalidConfig(ConfigError::new(field, format!("{what}: {e}")))
 }
 
 impl PointMassFilter {
@@ -197,7 +193,6 @@ impl PointMassFilter {
             pending_drift: 0.0,
             walked_since_fix: 0.0,
             log_evidence: 0.0,
-            evidence_means: None,
             initialised: false,
             reporting: false,
             t: 0,

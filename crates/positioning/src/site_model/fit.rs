@@ -19,7 +19,7 @@ use wipdr_fingerprint::walk_map::{WalkMapConfig, build_from_walks};
 use wipdr_fusion::SchemeConfig;
 use wipdr_fusion::trails::trails_of;
 use wipdr_pdr::calibrate::{CalibrationConfig, WalkSteps, calibrate_config};
-use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_pdr::{CheckedPdrConfig, Pdr, PdrConfig};
 
 /// How a site is learned from its training data (the `[radio_map]`, `propagation`,
 /// `calibrate_pdr` and `[calibration]` settings of an evaluation config).
@@ -181,7 +181,11 @@ pub(super) fn fit_radio_map(
 /// Runs PDR under `base` on the `training` walks (their waypoints are training data) and
 /// calibrates it there ([`calibrate_config`]: step length, heading offset, the grid
 /// orientation of heading snapping). Returns `base` unchanged when there is nothing to fit on.
-pub fn calibrate_pdr(base: &PdrConfig, cal: &CalibrationConfig, training: &[&Walk]) -> PdrConfig {
+pub fn calibrate_pdr(
+    base: &CheckedPdrConfig,
+    cal: &CalibrationConfig,
+    training: &[&Walk],
+) -> PdrConfig {
     let detailed: Vec<_> = training
         .par_iter()
         .map(|w| Pdr::run_detailed(*base, w).0)
@@ -235,7 +239,9 @@ impl SiteModel {
         let learned = fit_radio_map(data, &config.fit)?;
         let mut positioner = config.positioner.clone();
         if config.fit.calibrate_pdr && !data.walks.is_empty() {
-            positioner.pdr = calibrate_pdr(&positioner.pdr, &config.fit.calibration, data.walks);
+            let base = (positioner.pdr.check())
+                .map_err(|e| crate::PositioningError::from(e.under("pdr")))?;
+            positioner.pdr = calibrate_pdr(&base, &config.fit.calibration, data.walks);
         }
         // Fixes keep their candidates on every floor where the floors share one WGS84 frame
         // (they lie over each other), unless the config says.

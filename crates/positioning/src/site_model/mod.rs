@@ -75,6 +75,7 @@ use crate::{
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use thiserror::Error;
+use wipdr_core::ConfigError;
 use wipdr_core::{FloorPlan, GeoFrame, Point2, Segment};
 use wipdr_fingerprint::likelihood::ScanLikelihood;
 use wipdr_fingerprint::{MatcherModel, RadioMap};
@@ -194,12 +195,12 @@ impl SiteModel {
                 .map_err(|e| SiteModelError::Survey(format!("leave-one-out errors: {e}")))?;
         }
         for (name, scheme) in &data.schemes {
-            scheme
-                .validate()
-                .map_err(|e| PositioningError::InvalidConfig {
-                    path: format!("schemes.{name}"),
-                    reason: e.to_string(),
-                })?;
+            scheme.validate().map_err(|e| {
+                PositioningError::InvalidConfig(ConfigError::new(
+                    format!("schemes.{name}"),
+                    e.to_string(),
+                ))
+            })?;
         }
         let map = data.radio_map.clone();
         let matcher = data.config.matcher.build(map.clone())?;
