@@ -153,6 +153,7 @@ def main():
     parser.add_argument("--reuse", action="store_true", help="reuse target/results/ outputs of an earlier run")
     args = parser.parse_args()
     sys.path.insert(0, str(RESULTS))
+    sys.path.insert(1, str(RESULTS / "recipes"))  # recipes may import helper modules there
     sys.modules.setdefault("regenerate", sys.modules[__name__])
     load_recipes()
 
