@@ -38,10 +38,12 @@
 pub mod config;
 pub mod coverage;
 pub mod drawing;
+pub mod error;
 pub mod evaal_score;
 pub mod fingerprint_benchmark;
 pub mod fold_model;
 pub mod fold_rules;
+pub mod input;
 pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;
@@ -50,3 +52,8 @@ pub mod shard;
 pub mod streams;
 pub mod sweep;
 pub mod wifi_stats;
+
+pub use config::EvalConfig;
+pub use error::EvalError;
+pub use fold_model::PreparedWalk;
+pub use input::FloorInput;
