@@ -51,7 +51,6 @@ pub mod scoring;
 pub mod shard;
 pub mod streams;
 pub mod sweep;
-pub mod wifi_stats;
 
 pub use config::EvalConfig;
 pub use error::EvalError;

@@ -38,7 +38,7 @@
 //! convergence.
 //!
 //! ```
-//! use wipdr_eval::wifi_stats::{fit_rr_model, RrModel, FitConfig};
+//! use wipdr_analysis::wifi_stats::{fit_rr_model, RrModel, FitConfig};
 //!
 //! let truth = RrModel { eta0: 2.0, a: 80.0, rssi_r: -75.0, c: 1.85 };
 //! let rssi: Vec<f64> = (0..200).map(|i| -95.0 + 0.25 * i as f64).collect();
