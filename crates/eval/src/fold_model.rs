@@ -12,7 +12,7 @@ use std::sync::Arc;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
 use wipdr_fusion::trails::TrailRaster;
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec, TrainingData};
-use wipdr_positioning::{Event, Frontend, Positioner, Site, StreamIdentity, samples_of};
+use wipdr_positioning::{Frontend, Positioner, Site, StreamIdentity, samples_of};
 
 /// Who recorded a walk and when (phone model and start time), where its metadata says.
 pub fn identity_of(walk: &Walk) -> Option<StreamIdentity> {
@@ -173,9 +173,10 @@ impl FoldModel {
     }
 
     /// Streams a test walk's raw samples through the front end of the
-    /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher), recording its
-    /// motion (step or learned odometry, as the config's `odometry` says) and fix events: the
-    /// scheme-independent half of every run, done once per walk.
+    /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher,
+    /// [`Frontend::record`]), recording its motion (step or learned odometry, as the config's
+    /// `odometry` says) and fix events: the scheme-independent half of every run, done once
+    /// per walk.
     pub fn prepare_walk(
         &self,
         floor: &FloorInput,
@@ -203,30 +204,15 @@ impl FoldModel {
         if let Some(id) = identity_of(walk) {
             frontend.set_pressure_references(self.model.pressure_references().clone(), id);
         }
-        let mut steps = Vec::new();
-        let mut observations = Vec::with_capacity(walk.wifi.len());
-        let mut floors: Vec<(TimestampMs, i32)> = Vec::new();
-        for sample in samples_of(walk) {
-            let t = sample.t();
-            match frontend.push(&sample) {
-                Some(Event::Step(s)) => steps.push(s),
-                Some(Event::Fix(o)) => observations.push(o),
-                None => {}
-            }
-            if let Some(f) = frontend.floor()
-                && floors.last().is_none_or(|&(_, last)| last != f)
-            {
-                floors.push((t, f));
-            }
-        }
+        let recorded = frontend.record(samples_of(walk));
         let counts = frontend.counts();
         Ok(PreparedWalk {
             floor: floor.label.clone(),
             floor_index,
             walk: walk.meta.id.clone(),
             fold: self.fold,
-            steps,
-            observations,
+            steps: recorded.steps,
+            observations: recorded.fixes,
             unmatched_scans: usize::try_from(counts.unmatched_scans).unwrap_or(usize::MAX),
             first_scan_t: walk.wifi.first().map(|s| s.t),
             waypoint_coverage_m: walk
@@ -235,7 +221,7 @@ impl FoldModel {
                 .map(|w| coverage_distance(w.position, w.floor, self.model.measured()))
                 .collect(),
             waypoints: walk.waypoints.clone(),
-            floors,
+            floors: recorded.floors,
             off_floor_fixes: usize::try_from(counts.off_floor_fixes).unwrap_or(usize::MAX),
             coverage: self.model.coverage(),
             trails: self.model.trails().cloned(),

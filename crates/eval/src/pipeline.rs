@@ -20,9 +20,10 @@ use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint};
 use wipdr_fusion::SchemeConfig;
 use wipdr_pdr::{Pdr, PdrConfig};
+use wipdr_positioning::replay::replay_scheme;
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
-use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
+use wipdr_positioning::{PositionEstimate, Site, samples_of, stream_seed, track_of};
 
 #[doc(no_inline)]
 pub use crate::config::EvalConfig;
@@ -160,9 +161,10 @@ impl FloorEnv {
     }
 }
 
-/// Runs one scheme causally over one prepared walk through the fusion stage of the
-/// [`Positioner`](wipdr_positioning::Positioner): steps and fixes merged by the one replay
-/// driver ([`wipdr_fusion::replay`]: a step before a fix of the same millisecond), the
+/// Runs one scheme causally over one prepared walk: its recorded steps and fixes replayed
+/// through the scheme's fusion ([`replay_scheme`], what a
+/// [`Positioner`](wipdr_positioning::Positioner) with the scheme gives; merged by the one
+/// replay driver [`wipdr_fusion::replay`]: a step before a fix of the same millisecond), the
 /// estimate recorded after every input. `env` is the floor's plan (walls, walkable space);
 /// `cfg` gives the wrappers (map matching, static start) and the seed (mixed with the walk's
 /// id). The `pdr` baseline starts at the true first waypoint (the protocol's one use of
@@ -198,28 +200,20 @@ pub fn run_scheme(
         })?;
         return Ok(smoothed.iter().map(TrackPoint::from).collect());
     }
-    let mut stage = FusionStage::with_scheme(
+    let track = replay_scheme(
         &site,
         scheme,
         &positioner,
         stream_seed(cfg.positioner.seed, &walk.walk),
-        start.map(|w| w.position),
+        start.map(|w| (w.t, w.position)),
+        &walk.steps,
+        &walk.observations,
     )
     .map_err(|source| EvalError::Positioning {
         floor: walk.floor.clone(),
         source,
     })?;
-    let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
-    if let (Some(w), Some(e)) = (start, stage.estimate()) {
-        track.push(TrackPoint::new(w.t, e.position).with_sd(e.sd_m()));
-    }
-    track.extend(
-        stage
-            .replay(&walk.steps, &walk.observations, start.map(|w| w.t))
-            .iter()
-            .map(TrackPoint::from),
-    );
-    Ok(track)
+    Ok(track.iter().map(TrackPoint::from).collect())
 }
 
 /// The track `wipdr locate` writes for walk `walk_id` of `floor`: the walk's raw samples
