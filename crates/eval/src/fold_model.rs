@@ -173,7 +173,7 @@ impl FoldModel {
     }
 
     /// Streams a test walk's raw samples through the front end of the
-    /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher,
+    /// [`Positioner`] (PDR + stream matcher,
     /// [`Frontend::record`]), recording its motion (step or learned odometry, as the config's
     /// `odometry` says) and fix events: the scheme-independent half of every run, done once
     /// per walk.
