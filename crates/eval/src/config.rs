@@ -2,7 +2,7 @@
 //! scheme run, plus how each fold's radio map and PDR calibration are made and how runs are
 //! scored.
 
-use crate::pipeline::EvalError;
+use crate::error::EvalError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use wipdr_fingerprint::propagation::PropagationConfig;

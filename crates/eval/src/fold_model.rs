@@ -2,12 +2,17 @@
 //! ([`SiteModel::fit`], the same code a user fits their building with) and the test walks it
 //! positions.
 
+use crate::config::EvalConfig;
 use crate::coverage::coverage_distance;
+use crate::error::EvalError;
 use crate::fold_rules::folds_of_walks;
-use crate::pipeline::{EvalConfig, EvalError, FloorInput, PreparedWalk};
-use wipdr_core::{Point2, TimestampMs, Walk};
+use crate::input::FloorInput;
+use crate::streams::MissingStream;
+use std::sync::Arc;
+use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_fusion::trails::TrailRaster;
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec, TrainingData};
-use wipdr_positioning::{Event, Frontend, Positioner, Site, StreamIdentity, samples_of};
+use wipdr_positioning::{Frontend, Positioner, Site, StreamIdentity, samples_of};
 
 /// Who recorded a walk and when (phone model and start time), where its metadata says.
 pub fn identity_of(walk: &Walk) -> Option<StreamIdentity> {
@@ -15,6 +20,55 @@ pub fn identity_of(walk: &Walk) -> Option<StreamIdentity> {
         model: walk.meta.model.clone()?,
         start_unix_ms: walk.meta.start_time?,
     })
+}
+
+/// One test walk turned into scheme inputs.
+#[derive(Debug, Clone)]
+pub struct PreparedWalk {
+    /// Floor label.
+    pub floor: String,
+    /// Index of the floor in the input list.
+    pub floor_index: usize,
+    /// Walk id.
+    pub walk: String,
+    /// Protocol fold.
+    pub fold: usize,
+    /// PDR steps (calibrated on the fold's training walks).
+    pub steps: Vec<StepEvent>,
+    /// Wi-Fi observations (radio map of the fold's training walks).
+    pub observations: Vec<WifiObservation>,
+    /// Scans the matcher could not use (no known AP left after filtering, …).
+    pub unmatched_scans: usize,
+    /// Time of the walk's first Wi-Fi scan.
+    pub first_scan_t: Option<TimestampMs>,
+    /// Ground truth, for scoring only.
+    pub waypoints: Vec<Waypoint>,
+    /// Each waypoint's distance to the fold's nearest measured reference point on its floor
+    /// (aligned with `waypoints`; [`crate::coverage`]), for the error-by-coverage table.
+    pub waypoint_coverage_m: Vec<Option<f64>>,
+    /// The stream's floor estimate (`(time, floor)` at each change; empty when the radio
+    /// map has no floors): scheme-independent, made by the front end from Wi-Fi and the
+    /// barometer.
+    pub floors: Vec<(TimestampMs, i32)>,
+    /// Fixes dropped because none of their candidates was on the stream's floor.
+    pub off_floor_fixes: usize,
+    /// Positions of the fold's radio-map reference points (training data: where the map
+    /// has fingerprints), shared by the fold's walks; coverage-aware schemes use it.
+    pub coverage: Arc<Vec<Point2>>,
+    /// Where the fold's training walks went (segments between their consecutive waypoints),
+    /// shared by the fold's walks; `pmf`'s trail prior uses it. `None` when the training
+    /// walks have fewer than two waypoints each.
+    pub trails: Option<Arc<TrailRaster>>,
+    /// The input streams the walk lacks ([`crate::streams::missing_streams`]): a scheme
+    /// that needs one of them is not run on it but counted as a skipped run.
+    pub missing_streams: Vec<MissingStream>,
+}
+
+impl PreparedWalk {
+    /// The true first waypoint: the start of the PDR-only baseline (and only of it).
+    pub fn true_start(&self) -> Option<Waypoint> {
+        self.waypoints.first().copied()
+    }
 }
 
 /// What one fold learned from its training walks: the site model, and the walks it tests.
@@ -119,9 +173,10 @@ impl FoldModel {
     }
 
     /// Streams a test walk's raw samples through the front end of the
-    /// [`Positioner`](wipdr_positioning::Positioner) (PDR + stream matcher), recording its
-    /// motion (step or learned odometry, as the config's `odometry` says) and fix events: the
-    /// scheme-independent half of every run, done once per walk.
+    /// [`Positioner`] (PDR + stream matcher,
+    /// [`Frontend::record`]), recording its motion (step or learned odometry, as the config's
+    /// `odometry` says) and fix events: the scheme-independent half of every run, done once
+    /// per walk.
     pub fn prepare_walk(
         &self,
         floor: &FloorInput,
@@ -152,30 +207,15 @@ impl FoldModel {
         if let Some(id) = identity_of(walk) {
             frontend.set_pressure_references(self.model.pressure_references().clone(), id);
         }
-        let mut steps = Vec::new();
-        let mut observations = Vec::with_capacity(walk.wifi.len());
-        let mut floors: Vec<(TimestampMs, i32)> = Vec::new();
-        for sample in samples_of(walk) {
-            let t = sample.t();
-            match frontend.push(&sample) {
-                Some(Event::Step(s)) => steps.push(s),
-                Some(Event::Fix(o)) => observations.push(o),
-                None => {}
-            }
-            if let Some(f) = frontend.floor()
-                && floors.last().is_none_or(|&(_, last)| last != f)
-            {
-                floors.push((t, f));
-            }
-        }
+        let recorded = frontend.record(samples_of(walk));
         let counts = frontend.counts();
         Ok(PreparedWalk {
             floor: floor.label.clone(),
             floor_index,
             walk: walk.meta.id.clone(),
             fold: self.fold,
-            steps,
-            observations,
+            steps: recorded.steps,
+            observations: recorded.fixes,
             unmatched_scans: usize::try_from(counts.unmatched_scans).unwrap_or(usize::MAX),
             first_scan_t: walk.wifi.first().map(|s| s.t),
             waypoint_coverage_m: walk
@@ -184,7 +224,7 @@ impl FoldModel {
                 .map(|w| coverage_distance(w.position, w.floor, self.model.measured()))
                 .collect(),
             waypoints: walk.waypoints.clone(),
-            floors,
+            floors: recorded.floors,
             off_floor_fixes: usize::try_from(counts.off_floor_fixes).unwrap_or(usize::MAX),
             coverage: self.model.coverage(),
             trails: self.model.trails().cloned(),

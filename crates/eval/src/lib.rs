@@ -17,9 +17,16 @@
 //!
 //! Every run goes through `wipdr-positioning`'s pipeline: a test walk's raw samples are
 //! streamed through the [`Positioner`](wipdr_positioning::Positioner)'s front end (PDR +
-//! stream matcher) once ([`fold_model::FoldModel::prepare_walk`]), and each scheme's fusion stage
-//! replays the recorded events ([`pipeline::run_scheme`]); [`pipeline::locate`] streams a walk
-//! through a whole `Positioner` and gives the same track.
+//! stream matcher) once ([`fold_model::FoldModel::prepare_walk`],
+//! [`Frontend::record`](wipdr_positioning::Frontend::record)), and each scheme replays the
+//! recorded events ([`pipeline::run_scheme`],
+//! [`replay_scheme`](wipdr_positioning::replay::replay_scheme)); [`pipeline::locate`] streams
+//! a walk through a whole `Positioner` and gives the same track.
+//!
+//! The modules depend one way (no import loop): [`error`], [`input`], [`config`],
+//! [`scoring`] and [`evaal_score`], [`report`] and [`coverage`] below [`fold_model`] (a fold's
+//! site model and the [`PreparedWalk`]s it makes), below [`pipeline`], below [`sweep`] and
+//! [`shard`].
 //!
 //! ```
 //! use wipdr_core::{Point2, Waypoint};
@@ -38,10 +45,12 @@
 pub mod config;
 pub mod coverage;
 pub mod drawing;
+pub mod error;
 pub mod evaal_score;
 pub mod fingerprint_benchmark;
 pub mod fold_model;
 pub mod fold_rules;
+pub mod input;
 pub mod pdr_protocol;
 pub mod pipeline;
 pub mod report;
@@ -49,4 +58,8 @@ pub mod scoring;
 pub mod shard;
 pub mod streams;
 pub mod sweep;
-pub mod wifi_stats;
+
+pub use config::EvalConfig;
+pub use error::EvalError;
+pub use fold_model::PreparedWalk;
+pub use input::FloorInput;

@@ -16,190 +16,25 @@ use crate::fold_rules::FOLDS;
 use crate::report::{EvalReport, SkippedRun, WalkMotion, WalkResult, WalkScanLikelihood};
 use crate::scoring::{Track, TrackPoint, score_track_with_floors};
 use rayon::prelude::*;
-use std::sync::Arc;
-use thiserror::Error;
 use wipdr_core::walk::interpolate_waypoints;
-use wipdr_core::{Floor, Point2, StepEvent, TimestampMs, Walk, Waypoint, WifiObservation};
+use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint};
 use wipdr_fusion::SchemeConfig;
-use wipdr_fusion::trails::TrailRaster;
 use wipdr_pdr::{CheckedPdrConfig, Pdr};
+use wipdr_positioning::replay::replay_scheme;
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
-use wipdr_positioning::{FusionStage, PositionEstimate, Site, samples_of, stream_seed, track_of};
+use wipdr_positioning::{PositionEstimate, Site, samples_of, stream_seed, track_of};
 
-/// Errors of an evaluation.
-#[derive(Debug, Error)]
-pub enum EvalError {
-    /// A floor has fewer walks than folds.
-    #[error("floor {floor}: {walks} walks, need at least {folds} for the protocol folds")]
-    TooFewWalks {
-        /// Floor label.
-        floor: String,
-        /// Walks found.
-        walks: usize,
-        /// Folds required.
-        folds: usize,
-    },
-    /// Walks with routes (leave-one-route-out) of fewer than two routes.
-    #[error(
-        "floor {floor}: its walks cover {routes} route(s); leave-one-route-out needs at least 2"
-    )]
-    TooFewRoutes {
-        /// Floor label.
-        floor: String,
-        /// Distinct routes found.
-        routes: usize,
-    },
-    /// Building a radio map or matcher failed.
-    #[error("floor {floor}, fold {fold}: {source}")]
-    Fingerprint {
-        /// Floor label.
-        floor: String,
-        /// Fold.
-        fold: usize,
-        /// Cause.
-        source: wipdr_fingerprint::FingerprintError,
-    },
-    /// A sweep could not be set up or recorded.
-    #[error("sweep: {0}")]
-    Sweep(String),
-    /// A config file could not be read (syntax, unknown or removed field, bad value).
-    #[error("config {origin}: {reason}")]
-    Config {
-        /// Where the config came from (a file path).
-        origin: String,
-        /// What is wrong, with the field path.
-        reason: String,
-    },
-    /// A config value is out of range: the field's dotted path and what is wrong.
-    #[error(transparent)]
-    InvalidConfig(#[from] wipdr_core::ConfigError),
-    /// The positioning pipeline could not be built.
-    #[error("floor {floor}: {source}")]
-    Positioning {
-        /// Floor label.
-        floor: String,
-        /// Cause.
-        source: wipdr_positioning::PositioningError,
-    },
-    /// A walk asked for is not on the floor.
-    #[error("floor {floor}: no walk {walk:?}")]
-    UnknownWalk {
-        /// Floor label.
-        floor: String,
-        /// Walk id asked for.
-        walk: String,
-    },
-    /// A fold's site model could not be fit.
-    #[error("floor {floor}: site model: {reason}")]
-    Site {
-        /// Floor label.
-        floor: String,
-        /// Cause.
-        reason: String,
-    },
-    /// A scheme could not be built from its config.
-    #[error("scheme {scheme}: {source}")]
-    Scheme {
-        /// Scheme name.
-        scheme: String,
-        /// Cause.
-        source: wipdr_fusion::FusionError,
-    },
-}
-
+#[doc(no_inline)]
 pub use crate::config::EvalConfig;
-
-/// A floor under evaluation: its label (as given on the command line) and the floor in the
-/// core vocabulary (plan + walks), wherever it came from (ILC or IPIN files, the Python
-/// package, walks built in code).
-#[derive(Debug, Clone)]
-pub struct FloorInput {
-    /// Label used in reports.
-    pub label: String,
-    /// The floor.
-    pub data: Arc<Floor>,
-    /// The folder it was read from, where it was (plots look for the floor image there).
-    pub dir: Option<std::path::PathBuf>,
-    /// What the readers skipped in it, by kind (records out of range, unreadable walk
-    /// files, unusable plan features, ...), for the report's skip counts.
-    pub input_skips: crate::report::InputSkips,
-}
-
-impl FloorInput {
-    /// A labelled floor.
-    pub fn new(label: impl Into<String>, floor: Floor) -> Self {
-        Self {
-            label: label.into(),
-            data: Arc::new(floor),
-            dir: None,
-            input_skips: crate::report::InputSkips::new(),
-        }
-    }
-
-    /// The floor with what its readers skipped, by kind.
-    pub fn with_input_skips(mut self, skips: crate::report::InputSkips) -> Self {
-        self.input_skips = skips;
-        self
-    }
-
-    /// The floor with the folder it was read from.
-    pub fn with_dir(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
-        self.dir = Some(dir.into());
-        self
-    }
-}
-
-/// One test walk turned into scheme inputs.
-#[derive(Debug, Clone)]
-pub struct PreparedWalk {
-    /// Floor label.
-    pub floor: String,
-    /// Index of the floor in the input list.
-    pub floor_index: usize,
-    /// Walk id.
-    pub walk: String,
-    /// Protocol fold.
-    pub fold: usize,
-    /// PDR steps (calibrated on the fold's training walks).
-    pub steps: Vec<StepEvent>,
-    /// Wi-Fi observations (radio map of the fold's training walks).
-    pub observations: Vec<WifiObservation>,
-    /// Scans the matcher could not use (no known AP left after filtering, …).
-    pub unmatched_scans: usize,
-    /// Time of the walk's first Wi-Fi scan.
-    pub first_scan_t: Option<TimestampMs>,
-    /// Ground truth, for scoring only.
-    pub waypoints: Vec<Waypoint>,
-    /// Each waypoint's distance to the fold's nearest measured reference point on its floor
-    /// (aligned with `waypoints`; [`crate::coverage`]), for the error-by-coverage table.
-    pub waypoint_coverage_m: Vec<Option<f64>>,
-    /// The stream's floor estimate (`(time, floor)` at each change; empty when the radio
-    /// map has no floors): scheme-independent, made by the front end from Wi-Fi and the
-    /// barometer.
-    pub floors: Vec<(TimestampMs, i32)>,
-    /// Fixes dropped because none of their candidates was on the stream's floor.
-    pub off_floor_fixes: usize,
-    /// Positions of the fold's radio-map reference points (training data: where the map
-    /// has fingerprints), shared by the fold's walks; coverage-aware schemes use it.
-    pub coverage: Arc<Vec<Point2>>,
-    /// Where the fold's training walks went (segments between their consecutive waypoints),
-    /// shared by the fold's walks; `pmf`'s trail prior uses it. `None` when the training
-    /// walks have fewer than two waypoints each.
-    pub trails: Option<Arc<TrailRaster>>,
-    /// The input streams the walk lacks ([`crate::streams::missing_streams`]): a scheme
-    /// that needs one of them is not run on it but counted as a skipped run.
-    pub missing_streams: Vec<crate::streams::MissingStream>,
-}
+#[doc(no_inline)]
+pub use crate::error::EvalError;
+#[doc(no_inline)]
+pub use crate::fold_model::PreparedWalk;
+#[doc(no_inline)]
+pub use crate::input::FloorInput;
 
 pub use wipdr_positioning::site_model::{TRAIL_CELL_M, TRAIL_MAX_DISTANCE_M};
-
-impl PreparedWalk {
-    /// The true first waypoint: the start of the PDR-only baseline (and only of it).
-    pub fn true_start(&self) -> Option<Waypoint> {
-        self.waypoints.first().copied()
-    }
-}
 
 /// Steps of `walk` under `cfg`.
 pub fn steps_of(cfg: &CheckedPdrConfig, walk: &Walk) -> Vec<StepEvent> {
@@ -326,9 +161,10 @@ impl FloorEnv {
     }
 }
 
-/// Runs one scheme causally over one prepared walk through the fusion stage of the
-/// [`Positioner`](wipdr_positioning::Positioner): steps and fixes merged by the one replay
-/// driver ([`wipdr_fusion::replay`]: a step before a fix of the same millisecond), the
+/// Runs one scheme causally over one prepared walk: its recorded steps and fixes replayed
+/// through the scheme's fusion ([`replay_scheme`], what a
+/// [`Positioner`](wipdr_positioning::Positioner) with the scheme gives; merged by the one
+/// replay driver [`wipdr_fusion::replay`]: a step before a fix of the same millisecond), the
 /// estimate recorded after every input. `env` is the floor's plan (walls, walkable space);
 /// `cfg` gives the wrappers (map matching, static start) and the seed (mixed with the walk's
 /// id). The `pdr` baseline starts at the true first waypoint (the protocol's one use of
@@ -364,28 +200,20 @@ pub fn run_scheme(
         })?;
         return Ok(smoothed.iter().map(TrackPoint::from).collect());
     }
-    let mut stage = FusionStage::with_scheme(
+    let track = replay_scheme(
         &site,
         scheme,
         &positioner,
         stream_seed(cfg.positioner.seed, &walk.walk),
-        start.map(|w| w.position),
+        start.map(|w| (w.t, w.position)),
+        &walk.steps,
+        &walk.observations,
     )
     .map_err(|source| EvalError::Positioning {
         floor: walk.floor.clone(),
         source,
     })?;
-    let mut track: Track = Vec::with_capacity(walk.steps.len() + walk.observations.len() + 1);
-    if let (Some(w), Some(e)) = (start, stage.estimate()) {
-        track.push(TrackPoint::new(w.t, e.position).with_sd(e.sd_m()));
-    }
-    track.extend(
-        stage
-            .replay(&walk.steps, &walk.observations, start.map(|w| w.t))
-            .iter()
-            .map(TrackPoint::from),
-    );
-    Ok(track)
+    Ok(track.iter().map(TrackPoint::from).collect())
 }
 
 /// The track `wipdr locate` writes for walk `walk_id` of `floor`: the walk's raw samples

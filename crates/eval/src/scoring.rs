@@ -62,8 +62,8 @@ pub const RADIUS_95_PER_SD: f64 = 2.447_746_830_680_816;
 /// A stream's floor estimate: `(time, floor)` at each change, sorted by time.
 pub type FloorTrack = Vec<(TimestampMs, i32)>;
 
-/// Metres of EvAAL error per floor of floor error (the IPIN competition's 15 m).
-pub const FLOOR_PENALTY_M: f64 = 15.0;
+#[doc(no_inline)]
+pub use crate::evaal_score::FLOOR_PENALTY_M;
 
 /// One scored waypoint: time, 2D error (metres), floor error (estimate minus truth; `None`:
 /// no floor estimate yet).

@@ -32,7 +32,10 @@
 //! assert_eq!(shard_items(&items, s), vec![(0, 1), (1, 0)]);
 //! ```
 
-use crate::pipeline::{self, EvalConfig, EvalError, FloorInput};
+use crate::config::EvalConfig;
+use crate::error::EvalError;
+use crate::input::FloorInput;
+use crate::pipeline;
 use crate::report::{EvalReport, WalkResult};
 use crate::sweep::identity::{data_difference, hashed_difference};
 use crate::sweep::{DataIdentity, ShardId, data_identity, json_hash};

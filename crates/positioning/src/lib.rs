@@ -19,7 +19,10 @@
 //!   ([`wipdr_core::WifiObservation::on_floor`]).
 //!
 //! The evaluation (`wipdr-eval`), `wipdr locate` and the Python package all run this
-//! pipeline, so a figure in a results table is what a user's own stream gets. Recorded walks
+//! pipeline, so a figure in a results table is what a user's own stream gets. To compare
+//! schemes over one recording, [`replay`] runs the scheme-independent [`Frontend`] once and
+//! replays what it recorded through each scheme (the same estimates as a `Positioner` per
+//! scheme; the evaluation runs its thirteen schemes so). Recorded walks
 //! are streamed by [`samples_of`] in the one documented order (time, then
 //! [`Sample::tie_rank`]).
 //!
@@ -57,6 +60,7 @@ pub mod estimate;
 pub mod floor_tracker;
 pub mod merge;
 pub mod positioner;
+pub mod replay;
 pub mod sample;
 pub mod site;
 pub mod site_model;
@@ -69,7 +73,7 @@ pub use estimate::PositionEstimate;
 pub use floor_tracker::{
     FloorConfig, FloorTracker, HPA_PER_METRE, PressureReference, StreamIdentity,
 };
-pub use positioner::{Event, Frontend, FusionStage, Positioner, StreamCounts, track_of};
+pub use positioner::{Frontend, Positioner, StreamCounts, track_of};
 pub use sample::{PressureSample, Sample, samples_of};
 pub use site::{Site, WALKABLE_CELL_M, stream_seed};
 pub use site_model::{SiteConfig, SiteModel, SiteModelError, StreamSpec, TrainingData};

@@ -1,5 +1,6 @@
 //! The online pipeline: [`Frontend`] (PDR + stream matcher: samples in, step and fix events
-//! out), [`FusionStage`] (a fuser and its wrappers: events in, estimates out) and the
+//! out), the fusion stage (a fuser and its wrappers: events in, estimates out; crate-internal,
+//! replayed over a recorded stream by [`crate::replay::replay_scheme`]) and the
 //! [`Positioner`] that chains them for one stream.
 
 use crate::config::Odometry;
@@ -28,7 +29,7 @@ const MAX_RSS_OFFSET_DB: f64 = 20.0;
 
 /// What the front end made of one sample.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Event {
+pub(crate) enum Event {
     /// A motion event ended at this sample: a PDR step, or with `odometry = "learned"` the
     /// learned displacement since the previous one with its covariance
     /// ([`StepEvent::covariance`]).
@@ -58,9 +59,15 @@ pub struct StreamCounts {
     pub off_floor_fixes: u64,
 }
 
-/// PDR and the stream matcher: raw samples in, [`Event`]s out. Computes what the matchers
-/// need from the PDR (the latest step's motion for the AP index, the displacement since the
-/// previous scan for MED).
+/// The scheme-independent half of a [`Positioner`]: PDR and the stream matcher (and the floor
+/// estimate where the map has floors), raw samples in, motion events and Wi-Fi fixes out.
+/// Computes what the matchers need from the PDR (the latest step's motion for the AP index,
+/// the displacement since the previous scan for MED).
+///
+/// A positioner runs one inside; on its own, [`Frontend::record`] streams a recording once
+/// and keeps its events, which [`crate::replay::replay_scheme`] then runs through any number
+/// of schemes, each giving what a positioner with that scheme would (the evaluation's use:
+/// thirteen schemes over each test walk). See [`crate::replay`] for an example.
 pub struct Frontend {
     pdr: Pdr,
     matcher: Box<dyn OnlineMatcher>,
@@ -269,7 +276,7 @@ impl Frontend {
 
     /// Feeds one sample; samples must come in time order (an older one is counted and
     /// ignored). Returns the event it completed, if any.
-    pub fn push(&mut self, sample: &Sample) -> Option<Event> {
+    pub(crate) fn push(&mut self, sample: &Sample) -> Option<Event> {
         self.counts.samples += 1;
         let t = sample.t();
         if self.last_t.is_some_and(|last| t < last) {
@@ -413,7 +420,7 @@ impl Frontend {
 
 /// One stream's fusion: the scheme's fuser wrapped in the configured static start and map
 /// matching, fed events in time order ([`wipdr_fusion::replay`]'s tie rule).
-pub struct FusionStage {
+pub(crate) struct FusionStage {
     fuser: Box<dyn Fuser + Send>,
     floor: Option<i32>,
 }
@@ -530,11 +537,6 @@ impl FusionStage {
             covariance: e.covariance,
         })
     }
-
-    /// The scheme's name.
-    pub fn scheme(&self) -> &'static str {
-        self.fuser.name()
-    }
 }
 
 /// The online positioning pipeline of one stream: raw samples in, one at a time in time
@@ -623,16 +625,6 @@ impl Positioner {
         })
     }
 
-    /// A positioner from its two stages (e.g. a stream matcher of one's own); it cannot
-    /// [`smooth`](Positioner::smooth) (the stages do not say how they were built).
-    pub fn from_stages(frontend: Frontend, fusion: FusionStage) -> Self {
-        Self {
-            frontend,
-            fusion,
-            smoothing: None,
-        }
-    }
-
     /// Feeds one sample. Returns the new estimate when the sample completed a step or a fix
     /// (and the scheme has an estimate); `None` otherwise (see [`Positioner::estimate`]).
     pub fn push(&mut self, sample: &Sample) -> Option<PositionEstimate> {
@@ -668,13 +660,13 @@ impl Positioner {
     /// time-reversed stream over every step and fix received, combined at each input time
     /// ([`crate::smooth::smooth_fusion`]); each estimate uses the inputs after it too (what
     /// `wipdr eval --offline` scores). The live estimate is not changed. Errors for a
-    /// positioner built [`from_stages`](Positioner::from_stages) or with a known start.
+    /// positioner built with a known start.
     pub fn smooth(&self) -> Result<Vec<PositionEstimate>, PositioningError> {
         let sm = self.smoothing.as_ref().ok_or_else(|| {
             PositioningError::InvalidConfig(ConfigError::new(
                 "smooth",
-                "this positioner was built from stages or with a known start; \
-                         build it with Positioner::new without a start to smooth",
+                "this positioner was built with a known start; build it without a start to \
+                 smooth",
             ))
         })?;
         // The fixes' likelihoods made again from their scans, as the live stream made them.

@@ -7,7 +7,7 @@ use wipdr_core::{Walk, angle};
 use wipdr_pdr::odometry::{LearnedOdometry, rotate_covariance, rotate_heading};
 use wipdr_positioning::config::Odometry;
 use wipdr_positioning::{
-    Event, Frontend, PositionerConfig, SiteConfig, SiteModel, StreamSpec, TrainingData, samples_of,
+    Frontend, PositionerConfig, SiteConfig, SiteModel, StreamSpec, TrainingData, samples_of,
     track_of,
 };
 
@@ -52,12 +52,7 @@ fn learned_motion_events_are_the_networks_outputs_in_the_map_frame() {
     )
     .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)
     .unwrap();
-    let mut events = Vec::new();
-    for s in samples_of(&test) {
-        if let Some(Event::Step(e)) = frontend.push(&s) {
-            events.push(e);
-        }
-    }
+    let events = frontend.record(samples_of(&test)).steps;
     let batch = Arc::new(LearnedOdometry::shipped().unwrap())
         .run(&test)
         .unwrap();
@@ -128,13 +123,8 @@ fn steps_stay_the_default_and_carry_no_covariance() {
         config.floor,
     );
     assert_eq!(frontend.odometry(), Odometry::Steps);
-    let mut steps = 0;
-    for s in samples_of(&walk(0)) {
-        if let Some(Event::Step(e)) = frontend.push(&s) {
-            assert!(e.covariance.is_none());
-            steps += 1;
-        }
-    }
-    assert_eq!(frontend.counts().steps, steps);
+    let steps = frontend.record(samples_of(&walk(0))).steps;
+    assert!(steps.iter().all(|e| e.covariance.is_none()));
+    assert_eq!(frontend.counts().steps, steps.len() as u64);
     assert_eq!(frontend.counts().odometry_outputs, 0);
 }

@@ -1,7 +1,7 @@
 //! `wipdr wifi-stats`: Wi-Fi signals on the move (paper 002 §3.1, eq. 4-5, Fig. 2-3).
 //!
 //! Per AP and per walk, the refresh rate (from the entries' last-seen times) and the loss rate
-//! against the mean RSSI ([`wipdr_eval::wifi_stats::walk_ap_stats`]); the RR model
+//! against the mean RSSI ([`wipdr_analysis::wifi_stats::walk_ap_stats`]); the RR model
 //! `eta = eta0 + a / (1 + exp(-(RSSI - RSSI_r) / c))` fitted by least squares per floor and
 //! pooled, to the (AP, walk) points and to their binned means. Rates are in percent, as in the
 //! paper (`eta0 = 2.16 %`, `a = 82.49 %`, `RSSI_r = -75.0 dBm`, `c = 1.85`). The fitted
@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
-use wipdr_eval::wifi_stats::{
+use wipdr_analysis::wifi_stats::{
     Bin, FitConfig, RrFit, RrModel, WalkStatsSkips, WifiStatsConfig, binned_means, fit_rr_model,
     walk_ap_stats,
 };

@@ -38,7 +38,8 @@ mod tangent_plane;
 pub use quantile::{quantile, quantile_sorted};
 pub use tangent_plane::{EVAAL_ALTITUDE_M, TangentPlane, ecef};
 
-pub use crate::scoring::FLOOR_PENALTY_M;
+/// Metres of EvAAL error per floor of floor error (the IPIN competition's 15 m).
+pub const FLOOR_PENALTY_M: f64 = 15.0;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use wipdr_core::{EvaalEstimate, EvaalTruthPoint};

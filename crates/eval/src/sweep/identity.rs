@@ -16,7 +16,8 @@
 
 use super::SweepError;
 use super::spec::SweepSpec;
-use crate::pipeline::{EvalConfig, FloorInput};
+use crate::config::EvalConfig;
+use crate::input::FloorInput;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;

@@ -154,7 +154,7 @@ pub enum SweepError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::EvalConfig;
+    use crate::config::EvalConfig;
     use crate::report::Summary;
     use std::fs::OpenOptions;
     use std::io::Write;

@@ -125,30 +125,30 @@ pub(super) fn check_inputs(
     cfg: &FitConfig,
 ) -> Result<(f64, f64), WifiStatsError> {
     if cfg.min_points < 4 {
-        return Err(WifiStatsError::InvalidConfig {
-            field: "min_points",
-            reason: format!("the model has 4 parameters, got {}", cfg.min_points),
-        });
+        return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+            "min_points",
+            format!("the model has 4 parameters, got {}", cfg.min_points),
+        )));
     }
     if !(cfg.min_c > 0.0 && cfg.min_c.is_finite()) || cfg.grid_rssi_r < 2 {
-        return Err(WifiStatsError::InvalidConfig {
-            field: "min_c / grid_rssi_r",
-            reason: "min_c must be > 0 and grid_rssi_r >= 2".into(),
-        });
+        return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+            "min_c / grid_rssi_r",
+            "min_c must be > 0 and grid_rssi_r >= 2",
+        )));
     }
     if let Some([l, h]) = cfg.value_bounds
         && !(l.is_finite() && h.is_finite() && l < h)
     {
-        return Err(WifiStatsError::InvalidConfig {
-            field: "value_bounds",
-            reason: format!("need finite low < high, got [{l}, {h}]"),
-        });
+        return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+            "value_bounds",
+            format!("need finite low < high, got [{l}, {h}]"),
+        )));
     }
     if cfg.grid_c.iter().any(|c| !(c.is_finite() && *c > 0.0)) {
-        return Err(WifiStatsError::InvalidConfig {
-            field: "grid_c",
-            reason: "every start value must be finite and > 0".into(),
-        });
+        return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+            "grid_c",
+            "every start value must be finite and > 0",
+        )));
     }
     if rssi.len() != eta.len() {
         return Err(WifiStatsError::LengthMismatch {

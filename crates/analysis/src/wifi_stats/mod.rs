@@ -38,7 +38,7 @@
 //! convergence.
 //!
 //! ```
-//! use wipdr_eval::wifi_stats::{fit_rr_model, RrModel, FitConfig};
+//! use wipdr_analysis::wifi_stats::{fit_rr_model, RrModel, FitConfig};
 //!
 //! let truth = RrModel { eta0: 2.0, a: 80.0, rssi_r: -75.0, c: 1.85 };
 //! let rssi: Vec<f64> = (0..200).map(|i| -95.0 + 0.25 * i as f64).collect();
@@ -101,14 +101,9 @@ pub enum WifiStatsError {
         /// Sum of squared residuals at the last accepted point.
         sse: f64,
     },
-    /// A configuration value out of range.
-    #[error("invalid configuration field {field}: {reason}")]
-    InvalidConfig {
-        /// The field.
-        field: &'static str,
-        /// Why.
-        reason: String,
-    },
+    /// A configuration value out of range: the field's path and why.
+    #[error(transparent)]
+    InvalidConfig(#[from] wipdr_core::ConfigError),
 }
 
 /// How refresh and loss are read from a walk's scans (see the module docs). These are not
@@ -137,16 +132,16 @@ impl WifiStatsConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), WifiStatsError> {
         if self.refresh_tolerance_ms < 0 {
-            return Err(WifiStatsError::InvalidConfig {
-                field: "refresh_tolerance_ms",
-                reason: format!("must be >= 0, got {}", self.refresh_tolerance_ms),
-            });
+            return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+                "refresh_tolerance_ms",
+                format!("must be >= 0, got {}", self.refresh_tolerance_ms),
+            )));
         }
         if self.min_span_scans == 0 {
-            return Err(WifiStatsError::InvalidConfig {
-                field: "min_span_scans",
-                reason: "must be >= 1".into(),
-            });
+            return Err(WifiStatsError::InvalidConfig(wipdr_core::ConfigError::new(
+                "min_span_scans",
+                "must be >= 1",
+            )));
         }
         Ok(())
     }

@@ -1,0 +1,45 @@
+//! What an evaluation takes in: labelled floors (plan + walks), wherever they were read from.
+
+use crate::report::InputSkips;
+use std::sync::Arc;
+use wipdr_core::Floor;
+
+/// A floor under evaluation: its label (as given on the command line) and the floor in the
+/// core vocabulary (plan + walks), wherever it came from (ILC or IPIN files, the Python
+/// package, walks built in code).
+#[derive(Debug, Clone)]
+pub struct FloorInput {
+    /// Label used in reports.
+    pub label: String,
+    /// The floor.
+    pub data: Arc<Floor>,
+    /// The folder it was read from, where it was (plots look for the floor image there).
+    pub dir: Option<std::path::PathBuf>,
+    /// What the readers skipped in it, by kind (records out of range, unreadable walk
+    /// files, unusable plan features, ...), for the report's skip counts.
+    pub input_skips: InputSkips,
+}
+
+impl FloorInput {
+    /// A labelled floor.
+    pub fn new(label: impl Into<String>, floor: Floor) -> Self {
+        Self {
+            label: label.into(),
+            data: Arc::new(floor),
+            dir: None,
+            input_skips: InputSkips::new(),
+        }
+    }
+
+    /// The floor with what its readers skipped, by kind.
+    pub fn with_input_skips(mut self, skips: InputSkips) -> Self {
+        self.input_skips = skips;
+        self
+    }
+
+    /// The floor with the folder it was read from.
+    pub fn with_dir(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
+        self.dir = Some(dir.into());
+        self
+    }
+}
