@@ -38,7 +38,7 @@
 //!     }
 //! }
 //! // The front end once ...
-//! let mut frontend = Frontend::new(config.pdr, matcher.stream(config.query));
+//! let mut frontend = Frontend::new(config.pdr.check()?, matcher.stream(config.query));
 //! let recorded = frontend.record(samples.iter().cloned());
 //! assert_eq!(recorded.fixes.len(), 5);
 //! // ... then every scheme over what it recorded: what a Positioner with that scheme gives.
