@@ -332,12 +332,12 @@ impl EvalConfig {
                     };
                     if let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str) {
                         wipdr_positioning::merge::check_scheme_table(kind, t)
-                            .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
+                            .map_err(|e| bad(e.under(&format!("schemes.{name}")).to_string()))?;
                         continue;
                     }
                     if wipdr_fusion::scheme_names().contains(&name.as_str()) {
                         wipdr_positioning::merge::check_scheme_table(name, t)
-                            .map_err(|e| bad(format!("schemes.{name}.{e}")))?;
+                            .map_err(|e| bad(e.under(&format!("schemes.{name}")).to_string()))?;
                         t.insert("scheme".into(), serde_json::Value::String(name.clone()));
                     } else {
                         return Err(bad(format!(

@@ -356,12 +356,12 @@ impl SchemeConfig {
     }
 
     /// Refuses `keys` (the fields a config file sets in a table for scheme `name`) that the
-    /// scheme does not read ([`SchemeConfig::unread_fields`]); the error names the scheme, the
-    /// field and the schemes that do read it.
+    /// scheme does not read ([`SchemeConfig::unread_fields`]); the error's path is the field
+    /// (relative to the table), its reason names the scheme and the schemes that do read it.
     pub fn check_unread<'a>(
         name: &str,
         keys: impl IntoIterator<Item = &'a str>,
-    ) -> Result<(), String> {
+    ) -> Result<(), wipdr_core::ConfigError> {
         let unread = Self::unread_fields(name);
         for key in keys {
             if unread.contains(&key) {
@@ -369,10 +369,13 @@ impl SchemeConfig {
                     .into_iter()
                     .filter(|s| !Self::unread_fields(s).contains(&key))
                     .collect();
-                return Err(format!(
-                    "{key}: scheme `{name}` does not read it (only {} do); remove it or choose \
-                     one of those schemes",
-                    readers.join(", ")
+                return Err(wipdr_core::ConfigError::new(
+                    key,
+                    format!(
+                        "scheme `{name}` does not read it (only {} do); remove it or choose \
+                         one of those schemes",
+                        readers.join(", ")
+                    ),
                 ));
             }
         }

@@ -176,12 +176,7 @@ impl PositionerConfig {
         if let Some(serde_json::Value::Object(t)) = user.get("scheme")
             && let Some(kind) = t.get("scheme").and_then(serde_json::Value::as_str)
         {
-            crate::merge::check_scheme_table(kind, t).map_err(|reason| {
-                PositioningError::InvalidConfig(ConfigError::new(
-                    format!("scheme.{}", reason.split(':').next().unwrap_or("")),
-                    reason,
-                ))
-            })?;
+            crate::merge::check_scheme_table(kind, t).map_err(|e| e.under("scheme"))?;
         }
         let cfg: Self = crate::merge::from_value_onto(user, &Self::default())?;
         cfg.validate()?;

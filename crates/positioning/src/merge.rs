@@ -177,19 +177,20 @@ pub fn from_value_onto<T: Serialize + DeserializeOwned>(
 /// ([`wipdr_fusion::SchemeConfig::unread_fields`]) and that is set to a value other than the
 /// scheme's shipped default and its paper preset: a written-out config lists every field, so
 /// a default value there says nothing, while any other value would be silently ignored.
-/// The error is `FIELD: ...` (the caller prefixes the table's path).
+/// The error's path is the field (the caller prefixes the table's path,
+/// [`wipdr_core::ConfigError::under`]).
 ///
 /// ```
 /// use serde_json::json;
 /// use wipdr_positioning::merge::check_scheme_table;
 /// let t = json!({"scheme": "ekf", "robust": {"alpha": 0.05}});
-/// assert!(check_scheme_table("ekf", t.as_object().unwrap()).unwrap_err().starts_with("robust:"));
+/// assert_eq!(check_scheme_table("ekf", t.as_object().unwrap()).unwrap_err().path, "robust");
 /// assert!(check_scheme_table("rkf", t.as_object().unwrap()).is_ok());
 /// ```
 pub fn check_scheme_table(
     kind: &str,
     table: &serde_json::Map<String, Value>,
-) -> Result<(), String> {
+) -> Result<(), wipdr_core::ConfigError> {
     let unread = wipdr_fusion::SchemeConfig::unread_fields(kind);
     if unread.is_empty() {
         return Ok(());
