@@ -21,7 +21,7 @@ import re
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-ROW = re.compile(r"^\|\s*`(?P<scheme>[a-z0-9_]+)`\s*\|[^|]*\|\s*(?P<us>[0-9.]+)\s*µs")
+ROW = re.compile(r"^\|\s*`(?P<scheme>[a-z0-9_-]+)`\s*\|[^|]*\|\s*(?P<us>[0-9.]+)\s*µs")
 
 
 def documented(doc: pathlib.Path) -> dict:

@@ -9,6 +9,8 @@
 //!   throughput, in milliseconds of walk: criterion's `Kelem/s` is the real-time factor
 //!   (seconds of walk positioned per second of computing).
 //!
+//! - `pmf-point`: `pmf` with `wifi_likelihood = false` (the Gaussian about each fix only, no
+//!   scan likelihood raster).
 //! - `{ekf,pmf}-learned`: the same with `odometry = "learned"` (the learned inertial
 //!   odometry's network one window a second instead of the steps moving the fuser; the PDR
 //!   still runs for the matchers).
@@ -42,7 +44,14 @@ fn floor() -> FloorInput {
 
 fn positioner(c: &mut Criterion) {
     let floor = floor();
-    let cfg = EvalConfig::default();
+    let mut cfg = EvalConfig::default();
+    // `pmf` weighing its cells by the Gaussian about each fix only, without the scan's
+    // likelihood raster (the shipped `pmf` reads it): the cost the raster adds.
+    let mut point = wipdr_fusion::SchemeConfig::default_for("pmf").expect("pmf");
+    if let wipdr_fusion::SchemeConfig::Pmf(c) = &mut point {
+        c.wifi_likelihood = false;
+    }
+    cfg.schemes.insert("pmf-point".to_string(), point);
     // The longest walk, positioned with its own fold's model.
     let walks = &floor.data.walks;
     let index = (0..walks.len())
@@ -83,6 +92,7 @@ fn positioner(c: &mut Criterion) {
         for (id, scheme, model) in [
             ("ekf", "ekf", &model),
             ("pmf", "pmf", &model),
+            ("pmf-point", "pmf-point", &model),
             ("ekf-learned", "ekf", &learned),
             ("pmf-learned", "pmf", &learned),
         ] {

@@ -7,6 +7,10 @@
 #
 #   benches/load/load-test.sh                     # ekf and pmf, N = 100 250 500 1000 1500 2000
 #   SCHEMES=pmf PHONES="1000 2000" DURATION=60 benches/load/load-test.sh
+#   CONFIG=benches/load/pmf-point.toml SCHEMES="pmf-point pmf" benches/load/load-test.sh
+#
+# MODEL: a site model file to serve instead of fitting one; CONFIG: the config (TOML, paths
+# from the repository's root) the model is fit with, e.g. for schemes of its own.
 #
 # Needs ../shared/data (or WIPDR_DATA) and a release build (made here).
 set -euo pipefail
@@ -20,7 +24,7 @@ server=""
 cleanup() { [ -n "$server" ] && kill "$server" 2>/dev/null; rm -rf "$work"; }
 trap cleanup EXIT
 model="${MODEL:-$work/site1-F1.wipdr}"
-[ -f "$model" ] || "$bin" fit --data "$data" --no-leave-one-out --out "$model"
+[ -f "$model" ] || "$bin" fit --data "$data" --no-leave-one-out ${CONFIG:+--config "$CONFIG"} --out "$model"
 od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/tokens"
 echo >> "$work/tokens"
 walks=("$data"/path_data_files/*.txt.gz)

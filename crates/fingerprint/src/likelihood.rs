@@ -60,6 +60,9 @@ use wipdr_core::{GridSpec, Point2, WifiLikelihood, WifiScan};
 use crate::error::FingerprintError;
 use crate::radio_map::RadioMap;
 
+mod field;
+use field::{ApField, FieldCell};
+
 /// The width of the valid RSS range, dB (`[-120, 0]`, [`crate::radio_map::is_valid_rssi`]):
 /// the density of an outlier reading.
 const RSS_RANGE_DB: f64 = 120.0;
@@ -198,21 +201,6 @@ impl LikelihoodConfig {
     }
 }
 
-/// One cell of an AP's field.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct FieldCell {
-    /// The cell's index in the floor's raster.
-    cell: u32,
-    /// ln of the heard density's Gaussian part's factor `(1 - outlier) P / (σ sqrt(2π))`.
-    ln_scale: f32,
-    /// RSS mean, dBm.
-    mean_dbm: f32,
-    /// `1 / (2 σ²)`, 1/dB².
-    inv_two_var: f32,
-    /// `ln(1 - (1 - outlier) P)`: the AP not heard here.
-    ln_silent: f32,
-}
-
 /// One floor's raster and its APs' fields.
 #[derive(Debug, Clone)]
 struct FloorFields {
@@ -226,7 +214,7 @@ struct FloorFields {
     /// none of them. NaN without coverage.
     silence: Vec<f32>,
     /// AP column -> its field (cells in raster order).
-    fields: HashMap<u32, Vec<FieldCell>>,
+    fields: HashMap<u32, ApField>,
 }
 
 /// Each floor's AP signal fields, learned from a radio map ([`ScanLikelihood::fit`]); the
@@ -428,19 +416,16 @@ impl ScanLikelihood {
             .map(|(&s, &h)| f64::from(s) + k * f64::from(h))
             .collect();
         for (column, rss) in aps {
-            let Some(cells) = f.fields.get(&column) else {
-                continue;
-            };
-            for c in cells {
-                ll[c.cell as usize] += self.heard_in_field(f, c, rss - offset_db);
+            if let Some(field) = f.fields.get(&column) {
+                field.add_heard(&mut ll, &f.ln_heard_outside, |c, outside| {
+                    self.heard_in_field(c, outside, rss - offset_db)
+                });
             }
         }
         // The APs the scan heard past the cap: not scored, and not silent either.
         for column in beyond {
-            if let Some(cells) = f.fields.get(&column) {
-                for c in cells {
-                    ll[c.cell as usize] -= f64::from(c.ln_silent);
-                }
+            if let Some(field) = f.fields.get(&column) {
+                field.remove_silence(&mut ll);
             }
         }
         let scale = self.config.evidence_scale;
@@ -492,9 +477,8 @@ impl ScanLikelihood {
         let mut residuals: Vec<f64> = aps
             .iter()
             .filter_map(|(column, rss)| {
-                let cells = f.fields.get(column)?;
-                let j = cells.binary_search_by_key(&cell, |c| c.cell).ok()?;
-                Some(rss - f64::from(cells[j].mean_dbm))
+                let c = f.fields.get(column)?.find(cell)?;
+                Some(rss - f64::from(c.mean_dbm))
             })
             .filter(|r| r.is_finite())
             .collect();
@@ -520,19 +504,13 @@ impl ScanLikelihood {
         let i = f.grid.index_of(p)?;
         let cell = u32::try_from(i).ok()?;
         // The raster's sum at one cell, in its order: each AP's field is sorted by cell.
-        let in_field = |column: &u32| {
-            let cells = f.fields.get(column)?;
-            cells
-                .binary_search_by_key(&cell, |c| c.cell)
-                .ok()
-                .map(|j| &cells[j])
-        };
+        let in_field = |column: &u32| f.fields.get(column)?.find(cell);
         let (aps, beyond) = self.scan_aps(scan);
         let k = aps.len() as f64;
         let mut v = f64::from(f.silence[i]) + k * f64::from(f.ln_heard_outside[i]);
         for (column, rss) in &aps {
             if let Some(c) = in_field(column) {
-                v += self.heard_in_field(f, c, rss - offset_db);
+                v += self.heard_in_field(c, f.ln_heard_outside[i], rss - offset_db);
             }
         }
         for column in &beyond {
@@ -546,13 +524,12 @@ impl ScanLikelihood {
     /// What a scan AP heard at `r` dBm (offset removed) adds at a cell of its field, beyond
     /// the baseline of that cell (its silence and the heard-outside term, traded for the
     /// heard density).
-    fn heard_in_field(&self, f: &FloorFields, c: &FieldCell, r: f64) -> f64 {
+    /// `ln_heard_outside` is the cell's [`FloorFields::ln_heard_outside`].
+    fn heard_in_field(&self, c: &FieldCell, ln_heard_outside: f32, r: f64) -> f64 {
         let outlier_density = self.config.outlier / RSS_RANGE_DB;
         let d = r - f64::from(c.mean_dbm);
         let gaussian = (f64::from(c.ln_scale) - d * d * f64::from(c.inv_two_var)).exp();
-        (gaussian + outlier_density).ln()
-            - f64::from(c.ln_silent)
-            - f64::from(f.ln_heard_outside[c.cell as usize])
+        (gaussian + outlier_density).ln() - f64::from(c.ln_silent) - f64::from(ln_heard_outside)
     }
 
     /// The scan's strongest `max_scan_aps` APs the map knows, as `(column, RSS)` (valid
@@ -742,7 +719,7 @@ fn fit_floor(
         for c in &list {
             silence[c.cell as usize] += c.ln_silent;
         }
-        fields.insert(ap, list);
+        fields.insert(ap, ApField::new(list));
     }
     Ok(FloorFields {
         floor,

@@ -469,7 +469,8 @@ impl SchemeConfig {
             )?),
             Self::Apf(c) => {
                 if ctx.walls.is_none() {
-                    tracing::warn!("apf built without a floor plan: no wall constraint");
+                    // Said once per site, where the site is built (`Site::from_plan`), not per stream.
+                    tracing::debug!("apf built without a floor plan: no wall constraint");
                 }
                 Box::new(ParticleFilter::new(
                     "apf",

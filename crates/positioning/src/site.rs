@@ -38,9 +38,15 @@ impl Site {
     /// The plan's part of a site (no coverage, no trails).
     pub fn from_plan(plan: Option<&FloorPlan>) -> Self {
         let Some(plan) = plan else {
+            tracing::warn!(
+                "no floor plan: map matching, pmf's walkability and apf's walls are off for this site"
+            );
             return Self::default();
         };
         let walkable = if plan.outline.is_empty() {
+            tracing::warn!(
+                "the floor plan has no outline: map matching and pmf's walkability are off for this site"
+            );
             None
         } else {
             match WalkableGrid::new(plan, WALKABLE_CELL_M) {

@@ -283,4 +283,26 @@ proptest! {
         let post = raster.posterior().unwrap();
         prop_assert!(post.iter().all(|p| p.is_finite() && *p >= 0.0));
     }
+
+    /// The raster's passes (run by run over each AP's field) give every cell the same bits
+    /// as [`ScanLikelihood::at`] (a look-up per scan AP), scored and past-the-cap APs alike.
+    #[test]
+    fn every_cell_of_the_raster_is_the_value_at_its_centre(
+        readings in proptest::collection::vec(-100.0f64..=-30.0, 1..5),
+        offset in -10.0f64..10.0,
+        cap in 1usize..4,
+    ) {
+        let aps = corners();
+        let config = LikelihoodConfig { max_scan_aps: cap, ..Default::default() };
+        let model = ScanLikelihood::fit(&floor_map(&aps, 40.0, 20.0), &config).unwrap();
+        let scan = WifiScan::from_readings(
+            0,
+            readings.iter().enumerate().map(|(k, &r)| (Bssid(k as u64 + 1), r)),
+        );
+        let raster = model.raster(Some(0), &scan, offset).unwrap();
+        for (i, v) in raster.log_likelihood.iter().enumerate() {
+            let at = model.at(Some(0), raster.grid.centre_of_index(i), &scan, offset);
+            prop_assert_eq!(at.map(f64::to_bits), v.map(f64::to_bits), "cell {}", i);
+        }
+    }
 }

@@ -216,7 +216,8 @@ impl PointMassFilter {
     /// the radio map's reference points, a known start and the trails.
     pub fn from_context(cfg: &PointMassConfig, ctx: &BuildContext) -> Result<Self, FusionError> {
         if ctx.walkable.is_none() {
-            tracing::warn!("pmf built without a floor plan: no walkability");
+            // Said once per site, where the site is built (`Site::from_plan`), not per stream.
+            tracing::debug!("pmf built without a floor plan: no walkability");
         }
         Ok(Self::new(
             cfg.clone(),
