@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use wipdr_core::walk::interpolate_waypoints;
 use wipdr_core::{Point2, StepEvent, TimestampMs, Walk, Waypoint};
 use wipdr_fusion::SchemeConfig;
-use wipdr_pdr::{CheckedPdrConfig, Pdr};
+use wipdr_pdr::{CheckedPdrConfig, Pdr, odometry};
 use wipdr_positioning::replay::replay_scheme;
 use wipdr_positioning::site_model::{SiteModel, SiteModelError, StreamSpec};
 use wipdr_positioning::smooth::smooth_fusion;
@@ -425,15 +425,19 @@ pub fn run_prepared_observed(
         .collect();
     let motion = prepared
         .iter()
-        .map(|pw| WalkMotion {
-            floor: pw.floor.clone(),
-            walk: pw.walk.clone(),
-            fold: pw.fold,
-            segments: segment_errors(
+        .map(|pw| {
+            let segments = segment_errors(
                 &pw.steps,
                 &pw.waypoints,
                 pw.first_scan_t.filter(|_| cfg.score_from_first_scan),
-            ),
+            );
+            WalkMotion {
+                floor: pw.floor.clone(),
+                walk: pw.walk.clone(),
+                fold: pw.fold,
+                segments: segments.iter().map(|s| (s.length_m, s.error_m)).collect(),
+                inside_95: segments.iter().map(|s| s.inside_95).collect(),
+            }
         })
         .collect();
     Ok(EvalReport::from_walks(
@@ -474,16 +478,30 @@ fn scan_likelihood(prepared: &[PreparedWalk], cfg: &EvalConfig) -> Vec<WalkScanL
         .collect()
 }
 
+/// One segment between consecutive waypoints, as [`segment_errors`] scores it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentError {
+    /// The true displacement's length, m.
+    pub length_m: f64,
+    /// The length of the motion events' summed displacement minus the true one, m.
+    pub error_m: f64,
+    /// Whether the true displacement lies inside the 95 % ellipse of the events' summed
+    /// covariance (independent events: their covariances add); `None` when an event of the
+    /// segment has no covariance (detected steps) or the sum is not positive definite. A
+    /// segment without events has a zero sum: `None`.
+    pub inside_95: Option<bool>,
+}
+
 /// The motion source's error between consecutive waypoints: for each pair `(a, b)` with
 /// `a` at or after `from` (the scoring start), the motion events with `t_a < t <= t_b`
 /// summed (length x heading each: steps or learned displacements, the same sum for both)
-/// against `p_b - p_a`. Returns `(true length, error)` per segment, m; pairs on different
-/// floors are left out.
+/// against `p_b - p_a`, and their summed covariance's 95 % ellipse tested where every event
+/// has one. Pairs on different floors are left out.
 pub fn segment_errors(
     events: &[StepEvent],
     waypoints: &[Waypoint],
     from: Option<TimestampMs>,
-) -> Vec<(f64, f64)> {
+) -> Vec<SegmentError> {
     let mut out = Vec::with_capacity(waypoints.len().saturating_sub(1));
     let mut k = 0usize;
     for pair in waypoints.windows(2) {
@@ -495,13 +513,28 @@ pub fn segment_errors(
             continue;
         }
         let mut d = wipdr_core::Vector2::zeros();
+        // The events' covariances `(xx, xy, yy)` summed; `None` once one has none.
+        let mut covariance = Some([0.0f64; 3]);
         let mut j = k;
         while j < events.len() && events[j].t <= b.t {
             d += wipdr_core::angle::step_displacement(events[j].length, events[j].heading);
+            covariance = covariance
+                .zip(events[j].displacement_covariance())
+                .map(|(s, c)| [s[0] + c[(0, 0)], s[1] + c[(0, 1)], s[2] + c[(1, 1)]]);
             j += 1;
         }
         let truth = b.position - a.position;
-        out.push((truth.norm(), (d - truth).norm()));
+        let residual = d - truth;
+        let inside_95 = covariance
+            .filter(|_| j > k)
+            .and_then(|c| odometry::mahalanobis2([residual.x, residual.y], c))
+            .filter(|m2| m2.is_finite())
+            .map(|m2| m2 <= odometry::CHI2_2_95);
+        out.push(SegmentError {
+            length_m: truth.norm(),
+            error_m: residual.norm(),
+            inside_95,
+        });
     }
     out
 }
@@ -591,17 +624,58 @@ mod tests {
         let got = segment_errors(&events, &waypoints, None);
         assert_eq!(got.len(), 2);
         assert!(
-            (got[0].0 - 3.0).abs() < 1e-12 && got[0].1.abs() < 1e-12,
+            (got[0].length_m - 3.0).abs() < 1e-12 && got[0].error_m.abs() < 1e-12,
             "{got:?}"
         );
-        assert!((got[1].0 - 4.0).abs() < 1e-12 && (got[1].1 - 1.0).abs() < 1e-12);
+        assert!((got[1].length_m - 4.0).abs() < 1e-12 && (got[1].error_m - 1.0).abs() < 1e-12);
+        // Detected steps carry no covariance: no ellipse test.
+        assert!(got.iter().all(|s| s.inside_95.is_none()));
         let later = segment_errors(&events, &waypoints, Some(2000));
         assert_eq!(later.len(), 1);
         assert_eq!(later[0], got[1]);
-        let summary = crate::report::MotionSummary::of(&got);
+        let pairs: Vec<(f64, f64)> = got.iter().map(|s| (s.length_m, s.error_m)).collect();
+        let summary = crate::report::MotionSummary::of(&pairs);
         assert_eq!(summary.segments, 2);
         assert!(
             (summary.mean_m - 0.5).abs() < 1e-12 && (summary.mean_length_m - 3.5).abs() < 1e-12
         );
+        assert_eq!(summary.inside_95, None);
+    }
+
+    /// Events with a covariance (learned odometry): the segment's covariances add, and the
+    /// truth is inside the 95 % ellipse when its Mahalanobis distance is at most
+    /// sqrt(5.99) = 2.45 standard deviations.
+    #[test]
+    fn segments_of_events_with_a_covariance_test_the_95_ellipse() {
+        let north = 0.0;
+        let with = |t, length, var: f64| StepEvent {
+            covariance: Some([var, 0.0, var]),
+            ..event(t, length, north)
+        };
+        // Two events of variance 0.5 m² each: a sum of 1 m², sd 1 m a axis.
+        let events = [
+            with(2000, 1.0, 0.5),
+            with(3000, 1.0, 0.5),
+            with(4000, 1.0, 0.5),
+        ];
+        let waypoints = [
+            waypoint(1000, 0.0, 0.0),
+            waypoint(3000, 0.0, 4.0), // summed 2 m north: 2 sd off, inside
+            waypoint(5000, 0.0, 8.0), // summed 1 m north: 3 sd off, outside
+        ];
+        let got = segment_errors(&events, &waypoints, None);
+        assert_eq!(
+            got.iter().map(|s| s.inside_95).collect::<Vec<_>>(),
+            [Some(true), Some(false)]
+        );
+        let pairs: Vec<(f64, f64)> = got.iter().map(|s| (s.length_m, s.error_m)).collect();
+        let summary = crate::report::MotionSummary::with_ellipses(
+            pairs.iter().zip(got.iter().map(|s| s.inside_95)),
+        );
+        assert_eq!(summary.inside_95, Some(0.5));
+        // One event without a covariance in the segment: no test for it.
+        let mixed = [with(2000, 1.0, 0.5), event(3000, 1.0, north)];
+        let got = segment_errors(&mixed, &waypoints[..2], None);
+        assert_eq!(got[0].inside_95, None);
     }
 }

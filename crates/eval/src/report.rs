@@ -184,6 +184,11 @@ pub struct WalkMotion {
     /// Per segment: the true displacement's length and the error of the motion events'
     /// summed displacement over the segment, m.
     pub segments: Vec<(f64, f64)>,
+    /// Per segment, in the same order: whether the true displacement lies inside the 95 %
+    /// ellipse of the events' summed covariance; `None` for a segment with an event without
+    /// one (detected steps carry none). Empty in reports written before it was kept.
+    #[serde(default)]
+    pub inside_95: Vec<Option<bool>>,
 }
 
 /// Where the truth falls in each scored scan's likelihood over the floor
@@ -246,26 +251,40 @@ pub struct MotionSummary {
     pub mean_m: f64,
     /// Median displacement error, m.
     pub median_m: f64,
+    /// The share of the segments with a covariance (learned odometry) whose true
+    /// displacement lies inside the 95 % ellipse of it; `None` without such segments.
+    #[serde(default)]
+    pub inside_95: Option<f64>,
 }
 
 impl MotionSummary {
     /// The summary of `(length, error)` segments; non-finite errors are left out.
     pub fn of<'a>(segments: impl IntoIterator<Item = &'a (f64, f64)>) -> Self {
-        let kept: Vec<(f64, f64)> = segments
+        Self::with_ellipses(segments.into_iter().map(|s| (s, None)))
+    }
+
+    /// [`MotionSummary::of`] with each segment's ellipse test ([`WalkMotion::inside_95`]).
+    pub fn with_ellipses<'a>(
+        segments: impl IntoIterator<Item = (&'a (f64, f64), Option<bool>)>,
+    ) -> Self {
+        let kept: Vec<((f64, f64), Option<bool>)> = segments
             .into_iter()
-            .copied()
-            .filter(|(l, e)| l.is_finite() && e.is_finite())
+            .map(|(s, inside)| (*s, inside))
+            .filter(|((l, e), _)| l.is_finite() && e.is_finite())
             .collect();
         if kept.is_empty() {
             return Self::default();
         }
         let n = kept.len() as f64;
-        let errors: Vec<f64> = kept.iter().map(|&(_, e)| e).collect();
+        let errors: Vec<f64> = kept.iter().map(|&((_, e), _)| e).collect();
+        let tested: Vec<bool> = kept.iter().filter_map(|&(_, inside)| inside).collect();
         Self {
             segments: kept.len(),
-            mean_length_m: kept.iter().map(|&(l, _)| l).sum::<f64>() / n,
+            mean_length_m: kept.iter().map(|&((l, _), _)| l).sum::<f64>() / n,
             mean_m: errors.iter().sum::<f64>() / n,
             median_m: ErrorStats::from_errors(&errors).p50,
+            inside_95: (!tested.is_empty())
+                .then(|| tested.iter().filter(|&&b| b).count() as f64 / tested.len() as f64),
         }
     }
 }
@@ -418,7 +437,13 @@ impl EvalReport {
         self.per_floor_and_pooled(
             &self.motion,
             |m| &m.floor,
-            |walks| MotionSummary::of(walks.flat_map(|m| &m.segments)),
+            |walks| {
+                MotionSummary::with_ellipses(walks.flat_map(|m| {
+                    // Reports from before the ellipse test have no `inside_95`.
+                    let tests = m.inside_95.iter().copied().chain(std::iter::repeat(None));
+                    m.segments.iter().zip(tests)
+                }))
+            },
         )
     }
 
@@ -435,17 +460,26 @@ impl EvalReport {
             out,
             "motion source `{source}`: displacement error between consecutive waypoints (m)"
         );
-        let _ = writeln!(
+        // The ellipse column only for a source with covariances (learned odometry).
+        let ellipses = rows.iter().any(|(_, m)| m.inside_95.is_some());
+        let _ = write!(
             out,
             "  {:<28} {:>8} {:>10} {:>8} {:>8}",
             "floor", "segments", "length", "mean", "median"
         );
+        let _ = writeln!(out, "{}", if ellipses { "  in 95 %" } else { "" });
         for (floor, m) in &rows {
-            let _ = writeln!(
+            let _ = write!(
                 out,
                 "  {:<28} {:>8} {:>10.2} {:>8.3} {:>8.3}",
                 floor, m.segments, m.mean_length_m, m.mean_m, m.median_m
             );
+            let inside = match (ellipses, m.inside_95) {
+                (false, _) => String::new(),
+                (true, Some(share)) => format!("  {:>7.1}%", 100.0 * share),
+                (true, None) => format!("  {:>8}", "-"),
+            };
+            let _ = writeln!(out, "{inside}");
         }
         out
     }

@@ -44,9 +44,15 @@ impl Site {
             return Self::default();
         };
         let walkable = if plan.outline.is_empty() {
-            tracing::warn!(
-                "the floor plan has no outline: map matching and pmf's walkability are off for this site"
-            );
+            if plan.walls.is_empty() {
+                tracing::warn!(
+                    "no floor plan: map matching, pmf's walkability and apf's walls are off for this site"
+                );
+            } else {
+                tracing::warn!(
+                    "the floor plan has no outline: map matching and pmf's walkability are off for this site"
+                );
+            }
             None
         } else {
             match WalkableGrid::new(plan, WALKABLE_CELL_M) {

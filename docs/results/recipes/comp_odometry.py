@@ -1,9 +1,12 @@
-"""The table of docs/results/odometry.md that a repository command gives in reasonable time:
+"""The tables of docs/results/odometry.md that a repository command gives in reasonable time:
 `wipdr eval` on the five ILC floors with the default motion source (steps) and with the shipped
-learned weights (`odometry = "learned"`, trained on all five floors: in-sample). The
-leave-one-floor-out training runs of `tools/odometry-train` and the fused schemes with the
-learned source (four evaluations of every scheme, each over 5 minutes here) are in
-docs/experiments.md."""
+learned weights (`odometry = "learned"`, trained on all five floors: in-sample), and on the
+IPIN logfiles (other phones, another building: held out), every scheme there. The
+leave-one-floor-out training runs of `tools/odometry-train` and the fused schemes on the ILC
+floors with the learned source (four evaluations of every scheme, each over 5 minutes here) are
+in docs/experiments.md."""
+
+import sys
 
 from regenerate import ilc_floors, table
 
@@ -27,8 +30,9 @@ def motion(runs):
     """The motion source's per-segment displacement error, steps against learned (in-sample)."""
     steps = ev(runs, False, False)["motion"]["summaries"]
     learned = ev(runs, True, False)["motion"]["summaries"]
-    out = ["| floor | segments | steps mean / median (m) | learned, in-sample, mean / median (m) |",
-           "| --- | --- | --- | --- |"]
+    out = ["| floor | segments | steps mean / median (m) | learned, in-sample, mean / median (m) "
+           "| learned: truth in its 95 % ellipse |",
+           "| --- | --- | --- | --- | --- |"]
     for f in FLOORS + ["pooled"]:
         s, l = steps[f], learned[f]
         assert s["segments"] == l["segments"], f
@@ -38,5 +42,59 @@ def motion(runs):
         if f != "pooled":
             sb = lb = ""
         out.append(row(f"{b}{f}{b}", s["segments"], f"{sb}{s['mean_m']:.3f}{sb} / {s['median_m']:.3f}",
-                       f"{lb}{l['mean_m']:.3f}{lb} / {l['median_m']:.3f}"))
+                       f"{lb}{l['mean_m']:.3f}{lb} / {l['median_m']:.3f}", inside(l)))
+    return "\n".join(out)
+
+
+def inside(summary):
+    """The share of segments inside the learned 95 % ellipse, or `-`."""
+    share = summary.get("inside_95")
+    return "-" if share is None else f"{100 * share:.1f} %"
+
+
+def ipin_runs(runs):
+    """The IPIN evaluations of every scheme, causal and offline, with steps (the runs of
+    accuracy.md's IPIN table, shared) and with the learned source."""
+    evaluation = sys.modules["recipes.evaluation"]
+    learned = ["--config", config_file('odometry = "learned"\n')]
+    return (evaluation.ipin(runs), evaluation.ipin(runs, True),
+            evaluation.ipin(runs, False, *learned), evaluation.ipin(runs, True, *learned))
+
+
+@table("odometry-ipin-motion")
+def ipin_motion(runs):
+    """The motion source's per-segment displacement error on the IPIN logfiles (held out)."""
+    steps, _, learned, _ = ipin_runs(runs)
+    s, l = steps["motion"]["summaries"]["pooled"], learned["motion"]["summaries"]["pooled"]
+    assert s["segments"] == l["segments"]
+    out = ["| data | segments | mean length (m) | steps mean / median (m) "
+           "| learned, held out, mean / median (m) | learned: truth in its 95 % ellipse |",
+           "| --- | --- | --- | --- | --- | --- |"]
+    sb, lb = ("**", "") if s["mean_m"] <= l["mean_m"] else ("", "**")
+    out.append(row("IPIN 2023, 29 logfiles", s["segments"], f"{s['mean_length_m']:.2f}",
+                   f"{sb}{s['mean_m']:.3f}{sb} / {s['median_m']:.3f}",
+                   f"{lb}{l['mean_m']:.3f}{lb} / {l['median_m']:.3f}", inside(l)))
+    return "\n".join(out)
+
+
+@table("odometry-ipin-fused")
+def ipin_fused(runs):
+    """Every scheme on the IPIN logfiles with steps and with the learned source (EvAAL)."""
+    evaluation = sys.modules["recipes.evaluation"]
+    sc, so, lc, lo = ipin_runs(runs)
+    out = ["| scheme | causal EvAAL, steps | causal EvAAL, learned | offline EvAAL, steps "
+           "| offline EvAAL, learned |",
+           "| --- | --- | --- | --- | --- |"]
+    for name in evaluation.ORDER:
+        if name == "wifi":
+            continue
+        cells = [name]
+        for steps, learned in ((sc, lc), (so, lo)):
+            a, b = steps["pooled"][name]["evaal"], learned["pooled"][name]["evaal"]
+            if name == "pdr" and steps is so:
+                cells += ["(causal)", "(causal)"]
+                continue
+            cells += [f"**{a:.2f}**" if a <= b else f"{a:.2f}",
+                      f"**{b:.2f}**" if b < a else f"{b:.2f}"]
+        out.append(row(*cells))
     return "\n".join(out)
