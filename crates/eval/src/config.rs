@@ -815,6 +815,46 @@ pub(crate) mod tests {
         assert!(err.contains("tumbling_rad_s"), "{err}");
     }
 
+    /// Every TOML example of the user guide reads as what it says it is: a sweep file (it
+    /// has a `[grid]` or `[random]` table) or a config, strict as `--config` reads it.
+    #[test]
+    fn every_toml_example_of_the_guide_reads() {
+        let guide = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/guide.md");
+        let text = std::fs::read_to_string(&guide).unwrap();
+        let mut blocks: Vec<String> = Vec::new();
+        let mut current: Option<String> = None;
+        for line in text.lines() {
+            match (&mut current, line.trim_start()) {
+                (None, "```toml") => current = Some(String::new()),
+                (Some(block), "```") => {
+                    blocks.push(std::mem::take(block));
+                    current = None;
+                }
+                (Some(block), _) => {
+                    block.push_str(line);
+                    block.push('\n');
+                }
+                (None, _) => {}
+            }
+        }
+        let (mut sweeps, mut configs) = (0, 0);
+        for block in &blocks {
+            if block.contains("[grid]") || block.contains("[random]") {
+                crate::sweep::SweepSpec::from_toml(block)
+                    .unwrap_or_else(|e| panic!("the guide's sweep example: {e}\n{block}"));
+                sweeps += 1;
+            } else {
+                EvalConfig::from_toml(block, "docs/guide.md")
+                    .unwrap_or_else(|e| panic!("the guide's config example: {e}\n{block}"));
+                configs += 1;
+            }
+        }
+        assert!(
+            sweeps >= 1 && configs >= 2,
+            "{sweeps} sweeps, {configs} configs"
+        );
+    }
+
     #[test]
     fn every_shipped_config_reads() {
         let files = shipped_toml_files("configs");
