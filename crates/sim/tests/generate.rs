@@ -334,6 +334,35 @@ mod invariants {
     use super::*;
     use proptest::prelude::*;
 
+    /// The case proptest found: a near-identity rotation increment whose trace rounded past 3
+    /// made one gyroscope sample NaN (`nalgebra`'s unclamped `acos`).
+    #[test]
+    fn the_seed_that_once_gave_a_nan_gyroscope_sample_gives_finite_streams() {
+        let mut cfg = SimConfig {
+            walks: 1,
+            duration_s: 20.0,
+            duration_jitter_s: 0.0,
+            gross_error_rate: 0.042033473192180905,
+            ..SimConfig::default()
+        };
+        cfg.survey.test_points = 1;
+        let world = wipdr_sim::SimWorld::build(&cfg, 2307767014909628701).unwrap();
+        let imu = world.walk(0).walk.imu;
+        assert!(
+            imu.gyroscope.len() > 900,
+            "{} gyroscope samples",
+            imu.gyroscope.len()
+        );
+        let bad = imu
+            .accelerometer
+            .iter()
+            .chain(&imu.gyroscope)
+            .chain(&imu.magnetometer)
+            .filter(|s| !s.v.iter().all(|v| v.is_finite()))
+            .count();
+        assert_eq!(bad, 0, "{bad} non-finite IMU samples");
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 8, .. ProptestConfig::default() })]
 
