@@ -30,10 +30,16 @@ bin=target/release/wipdr
 samples=$(awk -F, '$1 !~ /^(#|t_ms)/ { if ($2 == "wifi") scans[$1] = 1; else n++ }
     END { for (t in scans) n++; print n }' "$out/stream.csv")
 for s in "${schemes[@]}"; do
-    valgrind --tool=callgrind --callgrind-out-file="$out/callgrind.$s.out" \
+    # --error-exitcode does not cover the program's own exit code; the log's last lines do.
+    if ! valgrind --tool=callgrind --callgrind-out-file="$out/callgrind.$s.out" \
         --toggle-collect='wipdr_positioning::positioner::Positioner::push' \
         "$bin" --no-cache locate --model "$out/model.wipdr" "$walk" --scheme "$s" \
-        --out "$out/track.$s.csv" 2>"$out/valgrind.$s.log" >/dev/null
+        --out "$out/track.$s.csv" 2>"$out/valgrind.$s.log" >/dev/null ||
+        grep -q '^error:' "$out/valgrind.$s.log"; then
+        grep -v '^==' "$out/valgrind.$s.log" >&2
+        echo "$s: wipdr locate failed under valgrind (an old model.wipdr in $out? delete it)" >&2
+        exit 1
+    fi
     total=$(grep -o 'I *refs: *[0-9,]*' "$out/valgrind.$s.log" | tr -dc '0-9')
     echo "$s: $total instructions in Positioner::push, $samples samples: $((total / samples)) a sample"
 done
