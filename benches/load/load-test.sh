@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # The load benchmark of `wipdr serve` (docs/results/serve.md): N phones replaying the real walks
 # of ILC site1/F1 in real time (their IMU at its recorded rate, scans as recorded, 1 s
-# batches) for DURATION seconds, server and load generator on this machine, for each scheme
-# and N; prints each run's request latency percentiles, samples sent/accepted and the
-# server's memory per session, then a table. A repository command, not a test.
+# batches), server and load generator on this machine, for each scheme and N. The phones
+# start spread over RAMP_S seconds (default 30: a server meets phones arriving, not a
+# thousand cold starts in one second) and each one replays walk after walk, a session each
+# (`replay --loop`), so all N stream for the DURATION seconds after the ramp (default 60).
+# Prints each run's request latency percentiles (while all N stream: the table's p50, p99, max;
+# the whole run's p99: run_p99), samples sent/accepted and the server's memory a session,
+# then a table. A repository command, not a test.
 #
 #   benches/load/load-test.sh                     # ekf and pmf, N = 100 250 500 1000 1500 2000
 #   SCHEMES=pmf PHONES="1000 2000" DURATION=60 benches/load/load-test.sh
@@ -29,7 +33,7 @@ od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/tokens"
 echo >> "$work/tokens"
 walks=("$data"/path_data_files/*.txt.gz)
 results="$work/results.tsv"
-printf 'scheme\tphones\tp50_ms\tp99_ms\tmax_ms\tsent\taccepted\tkB_per_session\n' > "$results"
+printf 'scheme\tphones\tp50_ms\tp99_ms\tmax_ms\trun_p99_ms\tsessions\tsent\taccepted\tkB_per_session\n' > "$results"
 for scheme in ${SCHEMES:-ekf pmf}; do
   for n in ${PHONES:-100 250 500 1000 1500 2000}; do
     rm -f "$work/db.sqlite"*
@@ -39,9 +43,11 @@ for scheme in ${SCHEMES:-ekf pmf}; do
     for _ in $(seq 600); do grep -q 'listening on' "$work/serve.log" && break; sleep 0.1; done
     url="$(sed -n 's/^wipdr serve: listening on //p' "$work/serve.log" | head -1)"
     rm -f "$work/run.json"
-    echo "== $scheme, $n phones, ${DURATION:-60} s"
+    ramp="${RAMP_S:-30}"
+    echo "== $scheme, $n phones, a ${ramp} s ramp, then ${DURATION:-60} s"
     "$bin" replay --server "$url" --token-file "$work/tokens" --phones "$n" --concurrency "$n" \
-      --speed 1 --batch-ms 1000 --duration-s "${DURATION:-60}" --scheme "$scheme" \
+      --speed 1 --batch-ms 1000 --ramp-s "$ramp" --loop \
+      --duration-s "$(python3 -c "print($ramp + ${DURATION:-60})")" --scheme "$scheme" \
       --json "$work/run.json" "${walks[@]}" || true
     kill -TERM "$server"; wait "$server" || true; server=""
     [ -f "$work/run.json" ] || { printf '%s\t%s\tno result (see above)\n' "$scheme" "$n" >> "$results"; continue; }
@@ -49,8 +55,10 @@ for scheme in ${SCHEMES:-ekf pmf}; do
 import json, sys
 r = json.load(open(sys.argv[1]))
 per = r.get("memory_bytes_per_session")
-print("\t".join([sys.argv[2], sys.argv[3], "%.2f" % r["latency_ms"]["p50"], "%.2f" % r["latency_ms"]["p99"],
-                 "%.2f" % r["latency_ms"]["max"], str(r["samples_sent"]), str(r["samples_accepted"]),
+steady = r["steady_latency_ms"]
+print("\t".join([sys.argv[2], sys.argv[3], "%.2f" % steady["p50"], "%.2f" % steady["p99"],
+                 "%.2f" % steady["max"], "%.2f" % r["latency_ms"]["p99"], str(r["sessions"]),
+                 str(r["samples_sent"]), str(r["samples_accepted"]),
                  "-" if per is None else "%.0f" % (per / 1e3)]))
 PY
   done

@@ -209,6 +209,58 @@ fn a_replayed_walk_gives_exactly_the_locate_track_at_any_batch_size() {
     }
 }
 
+/// `replay --loop`: each phone replays walk after walk, a new session each, until
+/// `--duration-s` of stream time; every sample sent is accepted, and the summary counts the
+/// sessions. With `--phones 2` over one walk of L s (its last 1 s batch ending L s after its
+/// first sample) and a duration of 2 L + 20 s: two whole walks and 20 s of a third a phone.
+#[test]
+fn looping_phones_replay_walk_after_walk_until_the_duration() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Serve::start(&dir.path().join("t.sqlite"), &[]);
+    let run = |name: &str, extra: &[&str]| -> Value {
+        let summary = dir.path().join(name);
+        let mut args = vec![
+            "--speed",
+            "0",
+            "--scheme",
+            "ekf",
+            "--phones",
+            "2",
+            "--json",
+            summary.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let stream = fixture_stream();
+        args.push(stream.to_str().unwrap());
+        server.replay(&args);
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap()
+    };
+    let t: Vec<i64> = samples()
+        .iter()
+        .filter_map(|s| s["t_ms"].as_i64())
+        .collect();
+    let walk_s = (t[t.len() - 1] - t[0]).div_euclid(1000) + 1;
+    let once = run("once.json", &[]);
+    let first_20_s = run("twenty.json", &["--duration-s", "20"]);
+    let duration = (2 * walk_s + 20).to_string();
+    let looped = run("looped.json", &["--loop", "--duration-s", &duration]);
+    assert_eq!(once["sessions"], 2);
+    assert_eq!(looped["sessions"], 6);
+    let count = |v: &Value, k: &str| v[k].as_u64().unwrap();
+    for k in ["samples_sent", "batches"] {
+        assert_eq!(
+            count(&looped, k),
+            2 * count(&once, k) + count(&first_20_s, k),
+            "{k}"
+        );
+    }
+    assert_eq!(looped["samples_sent"], looped["samples_accepted"]);
+    assert!(
+        count(&first_20_s, "samples_sent") > 0
+            && count(&once, "samples_sent") > count(&first_20_s, "samples_sent") * 3
+    );
+}
+
 /// The fixture walk's samples in stream order, as plain JSON samples (via the CSV writer's
 /// format read back: the same walk `replay` sends).
 fn samples() -> Vec<Value> {

@@ -90,9 +90,20 @@ pub struct Args {
     /// default one phone a walk.
     #[arg(long)]
     pub phones: Option<usize>,
-    /// Stop each phone after this much of its walk's time, seconds.
+    /// Stop each phone after this much of its walk's time (with --loop: of its walks' time
+    /// together), seconds.
     #[arg(long)]
     pub duration_s: Option<f64>,
+    /// Each phone replays walk after walk (the next of the list, a new session each) until
+    /// --duration-s: N phones stay N streaming phones for the whole run, as in a building,
+    /// instead of going quiet when their walks end.
+    #[arg(long = "loop", requires = "duration_s")]
+    pub loop_walks: bool,
+    /// Spread the phones' starts evenly over this many seconds (default: one batch
+    /// interval). A server meets phones arriving over time; the latency while every phone
+    /// streams (from the ramp's end to the first phone's --duration-s) is reported apart.
+    #[arg(long, conflicts_with = "no_stagger")]
+    pub ramp_s: Option<f64>,
     /// Folder receiving each walk's track from the server (`<walk id>.<csv|geojson|txt>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -227,7 +238,9 @@ impl Ctx {
 
 #[derive(Debug, Default)]
 struct PhoneResult {
-    latencies_ms: Vec<f64>,
+    /// (seconds since the run's start when the request was sent, latency ms)
+    latencies_ms: Vec<(f64, f64)>,
+    sessions: usize,
     batches: usize,
     sent: usize,
     accepted: usize,
@@ -240,7 +253,12 @@ struct PhoneResult {
 
 /// What every phone of a run shares.
 struct PhoneSettings {
+    /// The run's start (latencies are stamped with their send time since it).
+    t0: Instant,
+    /// Phones in the run.
+    phones: usize,
     speed: f64,
+    loop_walks: bool,
     duration_s: Option<f64>,
     out: Option<PathBuf>,
     format: Format,
@@ -248,36 +266,81 @@ struct PhoneSettings {
 }
 
 /// How long phone `i` of `phones` waits before opening its session, when paced: the phones
-/// start spread evenly over one batch interval, as phones in a building are out of phase
-/// with each other (all of them sending in the same instant would measure a burst, not a
-/// load). Zero unpaced (`speed` 0), with `stagger` off, or for one phone.
-fn start_offset(i: usize, phones: usize, batch_ms: i64, speed: f64, stagger: bool) -> Duration {
-    if !stagger || speed <= 0.0 || phones < 2 || batch_ms <= 0 {
+/// start spread evenly over `ramp_s` seconds of stream time (by default one batch
+/// interval), as phones in a building are out of phase with each other (all of them sending
+/// in the same instant would measure a burst, not a load). Zero unpaced (`speed` 0), with
+/// `stagger` off, or for one phone.
+fn start_offset(i: usize, phones: usize, ramp_s: f64, speed: f64, stagger: bool) -> Duration {
+    if !stagger || speed <= 0.0 || phones < 2 || ramp_s.is_nan() || ramp_s <= 0.0 {
         return Duration::ZERO;
     }
     let share = i as f64 / phones as f64;
-    Duration::try_from_secs_f64(share * batch_ms as f64 / 1000.0 / speed).unwrap_or(Duration::ZERO)
+    Duration::try_from_secs_f64(share * ramp_s / speed).unwrap_or(Duration::ZERO)
 }
 
+/// One phone: after `offset`, walk `first` of `walks` (with `loop_walks`, then the next one
+/// and so on, a session each, until `duration_s` of stream time has passed in all).
 async fn phone(
     ctx: Arc<Ctx>,
-    walk: Arc<Prepared>,
+    walks: Arc<Vec<Arc<Prepared>>>,
+    first: usize,
     n: usize,
     offset: Duration,
     args: Arc<PhoneSettings>,
 ) -> PhoneResult {
+    tokio::time::sleep(offset).await;
+    let mut r = PhoneResult::default();
+    let start = Instant::now();
+    // Stream time already played by this phone, ms.
+    let mut played_ms = 0i64;
+    for k in 0.. {
+        let walk = &walks[(first + k) % walks.len()];
+        // The n-th phone on a walk, or its k-th round: a device label of its own.
+        let round = n + k * (args.phones / walks.len()).max(1);
+        let budget_ms = args.duration_s.map(|d| d * 1000.0 - played_ms as f64);
+        if budget_ms.is_some_and(|b| b <= 1e-9) {
+            break;
+        }
+        let Some(played) = play_walk(
+            &ctx, walk, round, start, played_ms, budget_ms, &args, &mut r,
+        )
+        .await
+        else {
+            break;
+        };
+        played_ms += played;
+        if !args.loop_walks || played <= 0 {
+            break;
+        }
+    }
+    r
+}
+
+/// Plays `walk` as one session, its batches due at `start + (played_ms + t) / speed`; stops
+/// after `budget_ms` of its time. Returns the stream time played (the last batch's end), or
+/// `None` when the session could not be opened (the error is in `r`).
+#[allow(clippy::too_many_arguments)]
+async fn play_walk(
+    ctx: &Ctx,
+    walk: &Prepared,
+    round: usize,
+    start: Instant,
+    played_ms: i64,
+    budget_ms: Option<f64>,
+    args: &PhoneSettings,
+    r: &mut PhoneResult,
+) -> Option<i64> {
     let PhoneSettings {
+        t0,
         speed,
-        duration_s,
         out,
         format,
         keep_open,
-    } = &*args;
-    tokio::time::sleep(offset).await;
-    let mut r = PhoneResult::default();
+        ..
+    } = args;
     let mut create = walk.create.clone();
-    if n > 0 {
-        create["device"] = json!(format!("{} #{n}", walk.id));
+    if round > 0 {
+        create["device"] = json!(format!("{} #{round}", walk.id));
     }
     let created = match ctx
         .call(
@@ -293,11 +356,11 @@ async fn phone(
                 "opening a session: {status}: {}",
                 String::from_utf8_lossy(&body)
             ));
-            return r;
+            return None;
         }
         Err(e) => {
             r.error = Some(format!("opening a session: {e}"));
-            return r;
+            return None;
         }
     };
     let Some(id) = created
@@ -306,35 +369,38 @@ async fn phone(
         .map(str::to_string)
     else {
         r.error = Some("opening a session: no id in the answer".into());
-        return r;
+        return None;
     };
-    let start = Instant::now();
+    r.sessions += 1;
     let path = format!("/v1/sessions/{id}/samples");
+    let mut played = 0i64;
     for (t_end, body, count) in &walk.batches {
-        if duration_s.is_some_and(|d| *t_end as f64 > d * 1000.0 + 1e-9) {
+        if budget_ms.is_some_and(|b| *t_end as f64 > b + 1e-9) {
             break;
         }
         if *speed > 0.0 {
-            let due = start + Duration::from_secs_f64(*t_end as f64 / 1000.0 / speed);
+            let due = start + Duration::from_secs_f64((played_ms + t_end) as f64 / 1000.0 / speed);
             tokio::time::sleep_until(due.into()).await;
             r.max_lag_ms = r
                 .max_lag_ms
                 .max(Instant::now().saturating_duration_since(due).as_secs_f64() * 1e3);
         }
+        played = *t_end;
         r.batches += 1;
         r.sent += count;
         // A 429 is retried after its Retry-After, as a phone would (at most 20 times).
         let mut attempts = 0;
         loop {
             attempts += 1;
+            let sent_s = t0.elapsed().as_secs_f64();
             match ctx.call(Method::POST, &path, Some(body.clone())).await {
                 Ok((StatusCode::OK, resp, lat)) => {
-                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    r.latencies_ms.push((sent_s, lat.as_secs_f64() * 1e3));
                     let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
                     r.accepted += v["accepted"].as_u64().unwrap_or(0) as usize;
                 }
                 Ok((StatusCode::TOO_MANY_REQUESTS, resp, lat)) if attempts <= 20 => {
-                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    r.latencies_ms.push((sent_s, lat.as_secs_f64() * 1e3));
                     r.rate_limited += 1;
                     let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
                     let wait = v["error"]["message"]
@@ -347,7 +413,7 @@ async fn phone(
                     continue;
                 }
                 Ok((status, resp, lat)) => {
-                    r.latencies_ms.push(lat.as_secs_f64() * 1e3);
+                    r.latencies_ms.push((sent_s, lat.as_secs_f64() * 1e3));
                     *r.refused.entry(status.as_u16()).or_default() += 1;
                     if r.error.is_none() {
                         r.error = Some(format!(
@@ -391,7 +457,18 @@ async fn phone(
     {
         r.error.get_or_insert(format!("closing: {e}"));
     }
-    r
+    Some(played)
+}
+
+/// The p50, p90, p99 and largest of `lat` (sorted here), ms; NaN for none.
+fn latency_summary(mut lat: Vec<f64>) -> (f64, f64, f64, f64) {
+    lat.sort_by(f64::total_cmp);
+    (
+        percentile(&lat, 0.5),
+        percentile(&lat, 0.9),
+        percentile(&lat, 0.99),
+        lat.last().copied().unwrap_or(f64::NAN),
+    )
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -471,11 +548,19 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        if args.phones.is_some_and(|n| n > prepared.len()) {
-            bail!("--out writes one track a walk: give no more --phones than walks");
+        if args.phones.is_some_and(|n| n > prepared.len()) || args.loop_walks {
+            bail!("--out writes one track a walk: give no more --phones than walks, and no --loop");
         }
     }
     let phones = args.phones.unwrap_or(prepared.len());
+    let ramp_s = match args.ramp_s {
+        Some(r) if !(r.is_finite() && r >= 0.0) => bail!("--ramp-s must be a finite number >= 0"),
+        Some(r) => r,
+        None => args.batch_ms as f64 / 1000.0,
+    };
+    if args.duration_s.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
+        bail!("--duration-s must be a finite number > 0");
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -493,23 +578,27 @@ pub fn run(args: Args) -> Result<()> {
         });
         let before = server_memory(&ctx).await;
         let sem = Arc::new(tokio::sync::Semaphore::new(args.concurrency.max(1)));
+        let t0 = Instant::now();
         let shared = Arc::new(PhoneSettings {
+            t0,
+            phones,
             speed: args.speed,
+            loop_walks: args.loop_walks,
             duration_s: args.duration_s,
             out: args.out.clone(),
             format: args.format,
             keep_open: args.keep_open,
         });
-        let t0 = Instant::now();
         let mut tasks = Vec::new();
-        let walks = prepared.len();
+        let walks = Arc::new(prepared);
         for i in 0..phones {
-            let walk = prepared[i % prepared.len()].clone();
-            let (ctx, sem, shared) = (ctx.clone(), sem.clone(), shared.clone());
-            let offset = start_offset(i, phones, args.batch_ms, args.speed, !args.no_stagger);
+            let (ctx, sem, shared, walks) =
+                (ctx.clone(), sem.clone(), shared.clone(), walks.clone());
+            let offset = start_offset(i, phones, ramp_s, args.speed, !args.no_stagger);
             tasks.push(tokio::spawn(async move {
                 let _permit = sem.acquire_owned().await;
-                phone(ctx, walk, i / walks, offset, shared).await
+                let n = i / walks.len();
+                phone(ctx, walks, i, n, offset, shared).await
             }));
         }
         // The peak: the server's memory while every phone still has its session open is read
@@ -542,11 +631,29 @@ pub fn run(args: Args) -> Result<()> {
         (results, before, peak, t0.elapsed())
     });
     let (results, before, peak, elapsed) = summary;
-    let mut lat: Vec<f64> = results
+    // From the ramp's end until the first phone's --duration-s, every phone streams: the
+    // steady state (wall time since the start). Without a ramp: the whole run.
+    let paced = args.speed > 0.0 && !args.no_stagger && phones > 1;
+    let steady_from_s = if paced { ramp_s / args.speed } else { 0.0 };
+    let steady_to_s = match args.duration_s {
+        Some(d) if paced => d / args.speed,
+        _ => f64::INFINITY,
+    };
+    let all = latency_summary(
+        results
+            .iter()
+            .flat_map(|r| r.latencies_ms.iter().map(|l| l.1))
+            .collect(),
+    );
+    let steady_lat: Vec<f64> = results
         .iter()
-        .flat_map(|r| r.latencies_ms.clone())
+        .flat_map(|r| r.latencies_ms.iter())
+        .filter(|l| l.0 >= steady_from_s && l.0 < steady_to_s)
+        .map(|l| l.1)
         .collect();
-    lat.sort_by(f64::total_cmp);
+    let steady_requests = steady_lat.len();
+    let steady = latency_summary(steady_lat);
+    let sessions: usize = results.iter().map(|r| r.sessions).sum();
     let sent: usize = results.iter().map(|r| r.sent).sum();
     let accepted: usize = results.iter().map(|r| r.accepted).sum();
     let batches: usize = results.iter().map(|r| r.batches).sum();
@@ -560,20 +667,21 @@ pub fn run(args: Args) -> Result<()> {
     }
     let errors: Vec<&String> = results.iter().filter_map(|r| r.error.as_ref()).collect();
     let max_lag = results.iter().map(|r| r.max_lag_ms).fold(0.0, f64::max);
-    let (p50, p90, p99, max) = (
-        percentile(&lat, 0.5),
-        percentile(&lat, 0.9),
-        percentile(&lat, 0.99),
-        lat.last().copied().unwrap_or(f64::NAN),
-    );
+    let (p50, p90, p99, max) = all;
     println!(
-        "replay: {phones} phones ({} scheme), {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {rate_limited} rate-limited and retried, {failed} failed, in {:.1} s",
+        "replay: {phones} phones ({} scheme), {sessions} sessions, {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {rate_limited} rate-limited and retried, {failed} failed, in {:.1} s",
         args.scheme,
         elapsed.as_secs_f64()
     );
     println!(
         "request latency (sample batches): p50 {p50:.2} ms, p90 {p90:.2} ms, p99 {p99:.2} ms, max {max:.2} ms; largest lag behind the schedule {max_lag:.1} ms"
     );
+    if steady_from_s > 0.0 {
+        println!(
+            "every phone streaming ({steady_from_s:.0}-{steady_to_s:.0} s, {steady_requests} requests): p50 {:.2} ms, p90 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+            steady.0, steady.1, steady.2, steady.3
+        );
+    }
     let per_session = match (before, peak) {
         (Some((b, _)), Some((p, n))) if n > 0.0 => {
             let per = (p - b) / n;
@@ -591,7 +699,12 @@ pub fn run(args: Args) -> Result<()> {
         let doc = json!({
             "phones": phones, "scheme": args.scheme, "batches": batches, "samples_sent": sent,
             "samples_accepted": accepted, "refused": refused, "rate_limited_retried": rate_limited, "failed": failed,
+            "sessions": sessions, "ramp_s": ramp_s,
             "latency_ms": { "p50": p50, "p90": p90, "p99": p99, "max": max },
+            "steady_latency_ms": { "from_s": steady_from_s,
+                "to_s": if steady_to_s.is_finite() { json!(steady_to_s) } else { Value::Null },
+                "requests": steady_requests,
+                "p50": steady.0, "p90": steady.1, "p99": steady.2, "max": steady.3 },
             "max_lag_ms": max_lag, "elapsed_s": elapsed.as_secs_f64(),
             "memory_bytes_before": before.map(|m| m.0), "memory_bytes_peak": peak.map(|m| m.0),
             "sessions_at_peak": peak.map(|m| m.1), "memory_bytes_per_session": per_session,
@@ -617,20 +730,21 @@ mod tests {
 
     #[test]
     fn paced_phones_start_spread_evenly_over_one_batch_interval() {
-        let offsets: Vec<Duration> = (0..4)
-            .map(|i| start_offset(i, 4, 1000, 1.0, true))
-            .collect();
+        let offsets: Vec<Duration> = (0..4).map(|i| start_offset(i, 4, 1.0, 1.0, true)).collect();
         let ms: Vec<u128> = offsets.iter().map(Duration::as_millis).collect();
         assert_eq!(ms, [0, 250, 500, 750]);
         // Twice real time: half the interval's wall time.
-        assert_eq!(start_offset(1, 2, 1000, 2.0, true).as_millis(), 250);
+        assert_eq!(start_offset(1, 2, 1.0, 2.0, true).as_millis(), 250);
+        // A 30 s ramp: the last of 1,000 phones starts 29.97 s in.
+        assert_eq!(start_offset(999, 1000, 30.0, 1.0, true).as_millis(), 29_970);
     }
 
     #[test]
     fn unpaced_unstaggered_or_single_phones_start_at_once() {
-        assert_eq!(start_offset(3, 4, 1000, 0.0, true), Duration::ZERO);
-        assert_eq!(start_offset(3, 4, 1000, 1.0, false), Duration::ZERO);
-        assert_eq!(start_offset(0, 1, 1000, 1.0, true), Duration::ZERO);
-        assert_eq!(start_offset(1, 2, 0, 1.0, true), Duration::ZERO);
+        assert_eq!(start_offset(3, 4, 1.0, 0.0, true), Duration::ZERO);
+        assert_eq!(start_offset(3, 4, 1.0, 1.0, false), Duration::ZERO);
+        assert_eq!(start_offset(0, 1, 1.0, 1.0, true), Duration::ZERO);
+        assert_eq!(start_offset(1, 2, 0.0, 1.0, true), Duration::ZERO);
+        assert_eq!(start_offset(1, 2, f64::NAN, 1.0, true), Duration::ZERO);
     }
 }
