@@ -46,6 +46,8 @@
 //! BSSID is an [`IoError::BadSample`] naming the file, the line and the field; the reader's
 //! [`Limits`] bound the line length, the input and the record count.
 
+mod de;
+
 use crate::{IoError, Limits};
 use serde::{Deserialize, Serialize};
 use std::io::{BufRead, BufReader, Read};
@@ -69,8 +71,10 @@ pub struct PlainAp {
 
 /// One sample of the plain stream format (one JSON line; one CSV line, or several `wifi`
 /// lines for a scan).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "sensor", rename_all = "snake_case", deny_unknown_fields)]
+/// Read from JSON by a hand-written `Deserialize` (`sample_stream/de.rs`, the derive's
+/// checks without its buffering).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "sensor", rename_all = "snake_case")]
 pub enum PlainSample {
     /// Stream metadata (first line only).
     Meta {
