@@ -334,18 +334,24 @@ mod invariants {
     use super::*;
     use proptest::prelude::*;
 
-    /// The case proptest found: a near-identity rotation increment whose trace rounded past 3
-    /// made one gyroscope sample NaN (`nalgebra`'s unclamped `acos`).
-    #[test]
-    fn the_seed_that_once_gave_a_nan_gyroscope_sample_gives_finite_streams() {
+    /// One 20 s walk, gross Wi-Fi errors at `gross`, one survey test point.
+    fn one_short_walk(gross: f64) -> SimConfig {
         let mut cfg = SimConfig {
             walks: 1,
             duration_s: 20.0,
             duration_jitter_s: 0.0,
-            gross_error_rate: 0.042033473192180905,
+            gross_error_rate: gross,
             ..SimConfig::default()
         };
         cfg.survey.test_points = 1;
+        cfg
+    }
+
+    /// The case proptest found: a near-identity rotation increment whose trace rounded past 3
+    /// made one gyroscope sample NaN (`nalgebra`'s unclamped `acos`).
+    #[test]
+    fn the_seed_that_once_gave_a_nan_gyroscope_sample_gives_finite_streams() {
+        let cfg = one_short_walk(0.042033473192180905);
         let world = wipdr_sim::SimWorld::build(&cfg, 2307767014909628701).unwrap();
         let imu = world.walk(0).walk.imu;
         assert!(
@@ -370,8 +376,7 @@ mod invariants {
         /// at most the cache lifetime old, and steps add up to the distance walked.
         #[test]
         fn any_seed_gives_a_sane_walk(seed in any::<u64>(), gross in 0.0f64..0.5) {
-            let mut cfg = SimConfig { walks: 1, duration_s: 20.0, duration_jitter_s: 0.0, gross_error_rate: gross, ..SimConfig::default() };
-            cfg.survey.test_points = 1;
+            let cfg = one_short_walk(gross);
             let world = wipdr_sim::SimWorld::build(&cfg, seed).unwrap();
             let w = world.walk(0);
             let plan = &world.floor.plan;
