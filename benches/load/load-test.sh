@@ -14,7 +14,9 @@
 #   CONFIG=benches/load/pmf-point.toml SCHEMES="pmf-point pmf" benches/load/load-test.sh
 #
 # MODEL: a site model file to serve instead of fitting one; CONFIG: the config (TOML, paths
-# from the repository's root) the model is fit with, e.g. for schemes of its own.
+# from the repository's root) the model is fit with, e.g. for schemes of its own;
+# SERVE_ARGS: more `wipdr serve` flags (e.g. SERVE_ARGS="--max-opens-per-s 30" RAMP_S=1).
+# The column opens_retried counts session opens refused by that limit and retried.
 #
 # Needs ../shared/data (or WIPDR_DATA) and a release build (made here).
 set -euo pipefail
@@ -33,12 +35,12 @@ od -An -tx1 -N32 /dev/urandom | tr -d ' \n' > "$work/tokens"
 echo >> "$work/tokens"
 walks=("$data"/path_data_files/*.txt.gz)
 results="$work/results.tsv"
-printf 'scheme\tphones\tp50_ms\tp99_ms\tmax_ms\trun_p99_ms\tsessions\tsent\taccepted\tkB_per_session\n' > "$results"
+printf 'scheme\tphones\tp50_ms\tp99_ms\tmax_ms\trun_p99_ms\tsessions\topens_retried\tsent\taccepted\tkB_per_session\n' > "$results"
 for scheme in ${SCHEMES:-ekf pmf}; do
   for n in ${PHONES:-100 250 500 1000 1500 2000}; do
     rm -f "$work/db.sqlite"*
     "$bin" serve --model "$model" --addr 127.0.0.1:0 --tokens "$work/tokens" --db "$work/db.sqlite" \
-      --max-sessions-per-token 100000 2> "$work/serve.log" &
+      --max-sessions-per-token 100000 ${SERVE_ARGS:-} 2> "$work/serve.log" &
     server=$!
     for _ in $(seq 600); do grep -q 'listening on' "$work/serve.log" && break; sleep 0.1; done
     url="$(sed -n 's/^wipdr serve: listening on //p' "$work/serve.log" | head -1)"
@@ -57,7 +59,7 @@ r = json.load(open(sys.argv[1]))
 per = r.get("memory_bytes_per_session")
 steady = r["steady_latency_ms"]
 print("\t".join([sys.argv[2], sys.argv[3], "%.2f" % steady["p50"], "%.2f" % steady["p99"],
-                 "%.2f" % steady["max"], "%.2f" % r["latency_ms"]["p99"], str(r["sessions"]),
+                 "%.2f" % steady["max"], "%.2f" % r["latency_ms"]["p99"], str(r["sessions"]), str(r["open_retries"]),
                  str(r["samples_sent"]), str(r["samples_accepted"]),
                  "-" if per is None else "%.0f" % (per / 1e3)]))
 PY

@@ -76,6 +76,14 @@ pub enum ApiError {
         /// When the batch would fit, seconds (rounded up).
         retry_after_s: u64,
     },
+    /// The server opens sessions faster than it may (429, with Retry-After).
+    #[error("the server opens at most {rate} sessions a second; retry in {retry_after_s} s")]
+    TooManyOpens {
+        /// Sessions a second allowed.
+        rate: f64,
+        /// When to try again, seconds (rounded up).
+        retry_after_s: u64,
+    },
     /// The token has as many open sessions as it may (429).
     #[error("this token has {limit} open sessions, the most it may have: close one first")]
     TooManySessions {
@@ -132,7 +140,7 @@ impl ApiError {
             | Self::InvalidSample { .. }
             | Self::OutOfOrder { .. }
             | Self::InvalidField { .. } => StatusCode::BAD_REQUEST,
-            Self::RateLimited { .. } | Self::TooManySessions { .. } => {
+            Self::RateLimited { .. } | Self::TooManyOpens { .. } | Self::TooManySessions { .. } => {
                 StatusCode::TOO_MANY_REQUESTS
             }
             Self::SessionClosed { .. } | Self::FormatUnavailable(_) => StatusCode::CONFLICT,
@@ -153,6 +161,7 @@ impl ApiError {
             Self::OutOfOrder { .. } => "out_of_order",
             Self::InvalidField { .. } => "invalid_field",
             Self::RateLimited { .. } => "rate_limited",
+            Self::TooManyOpens { .. } => "too_many_opens",
             Self::TooManySessions { .. } => "too_many_sessions",
             Self::SessionClosed { .. } => "session_closed",
             Self::FormatUnavailable(_) => "format_unavailable",
@@ -179,7 +188,8 @@ impl IntoResponse for ApiError {
             },
         };
         let mut response = (self.status(), axum::Json(body)).into_response();
-        if let Self::RateLimited { retry_after_s, .. } = &self
+        if let Self::RateLimited { retry_after_s, .. } | Self::TooManyOpens { retry_after_s, .. } =
+            &self
             && let Ok(v) = HeaderValue::from_str(&retry_after_s.to_string())
         {
             response.headers_mut().insert(header::RETRY_AFTER, v);

@@ -75,6 +75,12 @@ pub struct ServeConfig {
     pub flush_interval: Duration,
     /// Most access points in one scan.
     pub max_scan_entries: usize,
+    /// Sessions the server opens a second, over all tokens (more: 429 with Retry-After);
+    /// `None`: no limit. A new `pmf` session weighs a lattice over the whole floor until its
+    /// first fixes, so a crowd of them at once (every phone reconnecting after a restart)
+    /// delays every session's answers; this spreads them (`docs/results/serve.md` measures
+    /// a value).
+    pub max_opens_per_s: Option<f64>,
 }
 
 impl Default for ServeConfig {
@@ -87,6 +93,7 @@ impl Default for ServeConfig {
             idle_timeout: Duration::from_secs(300),
             flush_interval: Duration::from_secs(1),
             max_scan_entries: wipdr_io::Limits::default().max_scan_entries,
+            max_opens_per_s: None,
         }
     }
 }
@@ -111,6 +118,12 @@ impl ServeConfig {
         }
         if self.max_sessions_per_token == 0 {
             return bad("max_sessions_per_token", "at least 1");
+        }
+        if self
+            .max_opens_per_s
+            .is_some_and(|r| !(r.is_finite() && r > 0.0))
+        {
+            return bad("max_opens_per_s", "a finite number > 0");
         }
         if self.flush_interval.is_zero() || self.idle_timeout.is_zero() {
             return bad("flush_interval", "intervals are > 0");
@@ -162,6 +175,8 @@ pub struct AppState {
     pub config: ServeConfig,
     /// The live event bus.
     pub live: broadcast::Sender<Arc<LiveEvent>>,
+    /// The bucket of session opens ([`ServeConfig::max_opens_per_s`]; one second's worth).
+    pub opens: Option<std::sync::Mutex<sessions::Bucket>>,
     /// Set when the server stops (ends the live streams).
     pub stopping: watch::Receiver<bool>,
 }
@@ -191,6 +206,13 @@ impl AppState {
                 db: Arc::new(db),
                 registry: Registry::default(),
                 metrics: Metrics::default(),
+                opens: config.max_opens_per_s.map(|r| {
+                    std::sync::Mutex::new(sessions::Bucket::new(
+                        r,
+                        r.max(1.0),
+                        std::time::Instant::now(),
+                    ))
+                }),
                 config,
                 live,
                 stopping,

@@ -75,8 +75,9 @@ pub fn document() -> Value {
     }));
     create["responses"]["400"] =
         error_response("bad field (`invalid_field`) or JSON (`malformed_body`)");
-    create["responses"]["429"] =
-        error_response("the token has its most open sessions (`too_many_sessions`)");
+    create["responses"]["429"] = error_response(
+        "the token has its most open sessions (`too_many_sessions`), or the server opens sessions faster than `--max-opens-per-s` (`too_many_opens`, with Retry-After)",
+    );
     json!({
         "openapi": "3.1.0",
         "info": {

@@ -253,6 +253,23 @@ async fn create_session(
                 .into(),
         });
     }
+    if let Some(opens) = &state.opens {
+        opens
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take(1, Instant::now())
+            .map_err(|e| match e {
+                ApiError::RateLimited {
+                    rate,
+                    retry_after_s,
+                    ..
+                } => ApiError::TooManyOpens {
+                    rate,
+                    retry_after_s,
+                },
+                other => other,
+            })?;
+    }
     let id = {
         let b: [u8; 16] = rand::random();
         b.iter().map(|b| format!("{b:02x}")).collect::<String>()

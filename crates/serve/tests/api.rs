@@ -320,6 +320,48 @@ async fn security_refusals_are_typed_and_leave_other_sessions_intact() {
     server.shutdown().await;
 }
 
+/// `max_opens_per_s`: opens past the server's rate get 429 `too_many_opens` with the wait,
+/// whatever the token; the open sessions keep streaming; a second later an open succeeds.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn opens_past_the_servers_rate_wait_and_leave_the_open_sessions_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = fixture_samples();
+    let config = ServeConfig {
+        max_opens_per_s: Some(2.0),
+        ..fast_config()
+    };
+    let server = start(&dir.path().join("tracks.sqlite"), config).await;
+    let http = Http::new(server.addr);
+    // The bucket holds one second's opens: two.
+    let first = http.open(A, "ekf", "first").await;
+    let _second = http.open(B, "ekf", "second").await;
+    for token in [A, B] {
+        let (s, v) = http
+            .json(
+                Method::POST,
+                "/v1/sessions",
+                Some(token),
+                Some(&json!({"scheme": "ekf", "device": "third"})),
+            )
+            .await;
+        assert_eq!(s, StatusCode::TOO_MANY_REQUESTS, "{v}");
+        assert_eq!(v["error"]["code"], "too_many_opens", "{v}");
+        let message = v["error"]["message"].as_str().unwrap_or("");
+        assert!(message.ends_with("retry in 1 s"), "{message}");
+    }
+    let (s, v) = http.post(A, &first, &samples[..500]).await;
+    assert_eq!(s, StatusCode::OK, "{v}");
+    assert_eq!(v["accepted"], 500);
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let later = http.open(A, "ekf", "later").await;
+    assert_ne!(later, first);
+    let (s, m) = http.raw(Method::GET, "/metrics", None, Vec::new()).await;
+    assert_eq!(s, StatusCode::OK);
+    let m = String::from_utf8_lossy(&m);
+    assert!(m.contains("too_many_opens"), "{m}");
+    server.shutdown().await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn idle_sessions_are_closed_and_keep_their_track() {
     let dir = tempfile::tempdir().unwrap();

@@ -241,6 +241,8 @@ struct PhoneResult {
     /// (seconds since the run's start when the request was sent, latency ms)
     latencies_ms: Vec<(f64, f64)>,
     sessions: usize,
+    /// Session opens refused with 429 (the server's open rate) and retried.
+    open_retries: usize,
     batches: usize,
     sent: usize,
     accepted: usize,
@@ -290,7 +292,7 @@ async fn phone(
 ) -> PhoneResult {
     tokio::time::sleep(offset).await;
     let mut r = PhoneResult::default();
-    let start = Instant::now();
+    let mut start = Instant::now();
     // Stream time already played by this phone, ms.
     let mut played_ms = 0i64;
     for k in 0.. {
@@ -302,7 +304,7 @@ async fn phone(
             break;
         }
         let Some(played) = play_walk(
-            &ctx, walk, round, start, played_ms, budget_ms, &args, &mut r,
+            &ctx, walk, round, &mut start, played_ms, budget_ms, &args, &mut r,
         )
         .await
         else {
@@ -324,7 +326,7 @@ async fn play_walk(
     ctx: &Ctx,
     walk: &Prepared,
     round: usize,
-    start: Instant,
+    start: &mut Instant,
     played_ms: i64,
     budget_ms: Option<f64>,
     args: &PhoneSettings,
@@ -342,14 +344,30 @@ async fn play_walk(
     if round > 0 {
         create["device"] = json!(format!("{} #{round}", walk.id));
     }
-    let created = match ctx
-        .call(
-            Method::POST,
-            "/v1/sessions",
-            Some(Bytes::from(create.to_string())),
-        )
-        .await
-    {
+    // A 429 (the server's open rate) is retried after its Retry-After, as a phone would;
+    // the walk's schedule starts when the session opens.
+    let mut attempts = 0;
+    let opened = loop {
+        let t = Instant::now();
+        let answer = ctx
+            .call(
+                Method::POST,
+                "/v1/sessions",
+                Some(Bytes::from(create.to_string())),
+            )
+            .await;
+        match answer {
+            Ok((StatusCode::TOO_MANY_REQUESTS, body, _)) if attempts < 100 => {
+                attempts += 1;
+                r.open_retries += 1;
+                let wait = retry_after_s(&body);
+                tokio::time::sleep(Duration::from_secs(wait)).await;
+                *start += t.elapsed();
+            }
+            other => break other,
+        }
+    };
+    let created = match opened {
         Ok((StatusCode::CREATED, body, _)) => serde_json::from_slice::<Value>(&body).ok(),
         Ok((status, body, _)) => {
             r.error = Some(format!(
@@ -379,7 +397,7 @@ async fn play_walk(
             break;
         }
         if *speed > 0.0 {
-            let due = start + Duration::from_secs_f64((played_ms + t_end) as f64 / 1000.0 / speed);
+            let due = *start + Duration::from_secs_f64((played_ms + t_end) as f64 / 1000.0 / speed);
             tokio::time::sleep_until(due.into()).await;
             r.max_lag_ms = r
                 .max_lag_ms
@@ -402,14 +420,7 @@ async fn play_walk(
                 Ok((StatusCode::TOO_MANY_REQUESTS, resp, lat)) if attempts <= 20 => {
                     r.latencies_ms.push((sent_s, lat.as_secs_f64() * 1e3));
                     r.rate_limited += 1;
-                    let v: Value = serde_json::from_slice(&resp).unwrap_or(Value::Null);
-                    let wait = v["error"]["message"]
-                        .as_str()
-                        .and_then(|m| m.rsplit("retry in ").next())
-                        .and_then(|m| m.trim_end_matches(" s").parse::<u64>().ok())
-                        .unwrap_or(1)
-                        .clamp(1, 60);
-                    tokio::time::sleep(Duration::from_secs(wait)).await;
+                    tokio::time::sleep(Duration::from_secs(retry_after_s(&resp))).await;
                     continue;
                 }
                 Ok((status, resp, lat)) => {
@@ -458,6 +469,17 @@ async fn play_walk(
         r.error.get_or_insert(format!("closing: {e}"));
     }
     Some(played)
+}
+
+/// The wait a 429's body asks for ("... retry in N s"), seconds, in [1, 60].
+fn retry_after_s(body: &[u8]) -> u64 {
+    let v: Value = serde_json::from_slice(body).unwrap_or(Value::Null);
+    v["error"]["message"]
+        .as_str()
+        .and_then(|m| m.rsplit("retry in ").next())
+        .and_then(|m| m.trim_end_matches(" s").parse::<u64>().ok())
+        .unwrap_or(1)
+        .clamp(1, 60)
 }
 
 /// The p50, p90, p99 and largest of `lat` (sorted here), ms; NaN for none.
@@ -654,6 +676,7 @@ pub fn run(args: Args) -> Result<()> {
     let steady_requests = steady_lat.len();
     let steady = latency_summary(steady_lat);
     let sessions: usize = results.iter().map(|r| r.sessions).sum();
+    let open_retries: usize = results.iter().map(|r| r.open_retries).sum();
     let sent: usize = results.iter().map(|r| r.sent).sum();
     let accepted: usize = results.iter().map(|r| r.accepted).sum();
     let batches: usize = results.iter().map(|r| r.batches).sum();
@@ -669,7 +692,7 @@ pub fn run(args: Args) -> Result<()> {
     let max_lag = results.iter().map(|r| r.max_lag_ms).fold(0.0, f64::max);
     let (p50, p90, p99, max) = all;
     println!(
-        "replay: {phones} phones ({} scheme), {sessions} sessions, {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {rate_limited} rate-limited and retried, {failed} failed, in {:.1} s",
+        "replay: {phones} phones ({} scheme), {sessions} sessions ({open_retries} opens retried after a 429), {batches} batches, {sent} samples sent, {accepted} accepted, refused {refused:?}, {rate_limited} rate-limited and retried, {failed} failed, in {:.1} s",
         args.scheme,
         elapsed.as_secs_f64()
     );
@@ -699,7 +722,7 @@ pub fn run(args: Args) -> Result<()> {
         let doc = json!({
             "phones": phones, "scheme": args.scheme, "batches": batches, "samples_sent": sent,
             "samples_accepted": accepted, "refused": refused, "rate_limited_retried": rate_limited, "failed": failed,
-            "sessions": sessions, "ramp_s": ramp_s,
+            "sessions": sessions, "open_retries": open_retries, "ramp_s": ramp_s,
             "latency_ms": { "p50": p50, "p90": p90, "p99": p99, "max": max },
             "steady_latency_ms": { "from_s": steady_from_s,
                 "to_s": if steady_to_s.is_finite() { json!(steady_to_s) } else { Value::Null },

@@ -47,6 +47,12 @@ pub struct Args {
     /// Open sessions a token may have (more: 429).
     #[arg(long, default_value_t = 5000)]
     pub max_sessions_per_token: usize,
+    /// Sessions the server opens a second, over all tokens (more: 429 with Retry-After):
+    /// spreads a crowd of new sessions, e.g. every phone reconnecting after a restart.
+    /// Default: no limit. 30 keeps 1,000 shipped-`pmf` phones reconnecting at once under
+    /// 50 ms p99 on a 2-core machine (docs/results/serve.md).
+    #[arg(long)]
+    pub max_opens_per_s: Option<f64>,
     /// Sessions without a batch for this long are closed, seconds.
     #[arg(long, default_value_t = 300)]
     pub idle_timeout_s: u64,
@@ -80,6 +86,7 @@ pub fn run(args: Args) -> Result<()> {
         max_sessions_per_token: args.max_sessions_per_token,
         idle_timeout: Duration::from_secs(args.idle_timeout_s),
         flush_interval: Duration::from_millis(args.flush_ms),
+        max_opens_per_s: args.max_opens_per_s,
         ..ServeConfig::default()
     };
     let mut rt = tokio::runtime::Builder::new_multi_thread();
