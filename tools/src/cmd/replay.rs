@@ -763,6 +763,20 @@ mod tests {
     }
 
     #[test]
+    fn a_429_asks_for_its_wait_between_one_and_sixty_seconds() {
+        let body = |m: &str| format!(r#"{{"error":{{"code":"too_many_opens","message":"{m}"}}}}"#);
+        let wait = |m: &str| retry_after_s(body(m).as_bytes());
+        assert_eq!(
+            wait("the server opens at most 30 sessions a second; retry in 3 s"),
+            3
+        );
+        assert_eq!(wait("retry in 0 s"), 1);
+        assert_eq!(wait("retry in 18446744073709551615 s"), 60);
+        assert_eq!(wait("no wait given"), 1);
+        assert_eq!(retry_after_s(b"not json"), 1);
+    }
+
+    #[test]
     fn unpaced_unstaggered_or_single_phones_start_at_once() {
         assert_eq!(start_offset(3, 4, 1.0, 0.0, true), Duration::ZERO);
         assert_eq!(start_offset(3, 4, 1.0, 1.0, false), Duration::ZERO);
