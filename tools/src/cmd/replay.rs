@@ -318,7 +318,7 @@ async fn phone(
     r
 }
 
-/// Plays `walk` as one session, its batches due at `start + (played_ms + t) / speed`; stops
+/// Plays `walk` through one server session, its batches due at `start + (played_ms + t) / speed`; stops
 /// after `budget_ms` of its time. Returns the stream time played (the last batch's end), or
 /// `None` when the session could not be opened (the error is in `r`).
 #[allow(clippy::too_many_arguments)]

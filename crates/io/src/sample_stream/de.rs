@@ -1,28 +1,19 @@
 //! [`PlainSample`]'s JSON reading, written out: serde's derive for an internally tagged enum
 //! buffers every object into a generic tree before it knows the variant (an allocation per
 //! key and value): with the allocator, about a tenth of `wipdr serve`'s time under load
-//! (perf, `docs/results/serve.md`). A 1 s batch of 200 accelerometer samples and a scan
-//! parses in about 71 µs here against 95-140 µs derived (release build, a loaded machine). This reads each key once into its slot and builds the variant
-//! at the end, with the derive's checks and messages: the tag `sensor` is required and must
+//! (perf, `docs/results/serve.md`). This reads each key once into its slot and builds the
+//! variant at the end, with the derive's checks and messages: the tag `sensor` is required and must
 //! name a sensor, each sensor's fields are required (`meta`'s are optional) and no other
 //! field is allowed, a field may not repeat. The derived reading is kept in the tests, and a
-//! property test checks that both accept the same objects with the same values.
+//! property test checks that both accept the same objects with the same values. A 1 s batch
+//! of 200 accelerometer samples and a scan: `cargo bench -p wipdr-benches --bench
+//! plain_json` (43 µs on the quiet 2-core machine; the derive took about 60 µs, a one-off
+//! comparison in `docs/experiments.md`).
 
 use super::{PlainAp, PlainSample};
 use serde::de::{self, Deserializer, IgnoredAny, MapAccess, Visitor};
 use std::fmt;
 use wipdr_core::TimestampMs;
-
-/// The `sensor` values, in the enum's order.
-const SENSORS: &[&str] = &[
-    "meta",
-    "accelerometer",
-    "gyroscope",
-    "magnetometer",
-    "rotation_vector",
-    "pressure",
-    "wifi",
-];
 
 /// Each sensor's fields besides `sensor`, as the derive names them in its messages.
 const META_FIELDS: &[&str] = &["phone_model", "start_unix_ms"];
@@ -30,7 +21,10 @@ const VEC3_FIELDS: &[&str] = &["t_ms", "x", "y", "z"];
 const PRESSURE_FIELDS: &[&str] = &["t_ms", "hpa"];
 const WIFI_FIELDS: &[&str] = &["t_ms", "aps"];
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The tag's values (serde's derive: an unknown one is ``unknown variant `x`, expected one
+/// of `meta`, ...``, as the enum's derive said).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 enum Sensor {
     Meta,
     Accelerometer,
@@ -51,31 +45,6 @@ impl Sensor {
                 VEC3_FIELDS
             }
         }
-    }
-}
-
-impl<'de> de::Deserialize<'de> for Sensor {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl Visitor<'_> for V {
-            type Value = Sensor;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a sensor name")
-            }
-            fn visit_str<E: de::Error>(self, v: &str) -> Result<Sensor, E> {
-                Ok(match v {
-                    "meta" => Sensor::Meta,
-                    "accelerometer" => Sensor::Accelerometer,
-                    "gyroscope" => Sensor::Gyroscope,
-                    "magnetometer" => Sensor::Magnetometer,
-                    "rotation_vector" => Sensor::RotationVector,
-                    "pressure" => Sensor::Pressure,
-                    "wifi" => Sensor::Wifi,
-                    other => return Err(E::unknown_variant(other, SENSORS)),
-                })
-            }
-        }
-        d.deserialize_str(V)
     }
 }
 
@@ -239,6 +208,17 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
     use serde::Deserialize;
+
+    /// The `sensor` values, in the enum's order.
+    const SENSORS: &[&str] = &[
+        "meta",
+        "accelerometer",
+        "gyroscope",
+        "magnetometer",
+        "rotation_vector",
+        "pressure",
+        "wifi",
+    ];
 
     /// The derived reading this module replaces, kept to compare with.
     #[derive(Debug, Deserialize)]
