@@ -168,6 +168,7 @@ pub fn locate<'py>(
         label: name,
         data: Arc::new(floor),
         dir: None,
+        odometry: None,
         input_skips: Default::default(),
     };
     let index = input

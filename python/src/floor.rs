@@ -264,6 +264,7 @@ impl PyFloor {
             label: self.inner.name.clone(),
             data: self.inner.clone(),
             dir: None,
+            odometry: None,
             input_skips: self.skip_counts.clone(),
         }
     }

@@ -193,7 +193,11 @@ impl FoldModel {
             self.model.matcher().stream(cfg.positioner.query),
             config.floor,
         )
-        .with_odometry(config.odometry, config.pdr.heading.map_offset_rad)
+        .with_odometry_model(
+            config.odometry,
+            floor.odometry.clone(),
+            config.pdr.heading.map_offset_rad,
+        )
         .map_err(|source| EvalError::Positioning {
             floor: floor.label.clone(),
             source,

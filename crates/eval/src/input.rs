@@ -3,6 +3,7 @@
 use crate::report::InputSkips;
 use std::sync::Arc;
 use wipdr_core::Floor;
+use wipdr_pdr::odometry::LearnedOdometry;
 
 /// A floor under evaluation: its label (as given on the command line) and the floor in the
 /// core vocabulary (plan + walks), wherever it came from (ILC or IPIN files, the Python
@@ -18,6 +19,11 @@ pub struct FloorInput {
     /// What the readers skipped in it, by kind (records out of range, unreadable walk
     /// files, unusable plan features, ...), for the report's skip counts.
     pub input_skips: InputSkips,
+    /// The learned odometry network this floor's walks run when the config says
+    /// `odometry = "learned"` (not read under `steps`); `None`: the shipped weights. A
+    /// leave-one-floor-out evaluation gives each floor the network that did not train on it
+    /// (`wipdr eval --odometry-holdout`).
+    pub odometry: Option<Arc<LearnedOdometry>>,
 }
 
 impl FloorInput {
@@ -28,12 +34,19 @@ impl FloorInput {
             data: Arc::new(floor),
             dir: None,
             input_skips: InputSkips::new(),
+            odometry: None,
         }
     }
 
     /// The floor with what its readers skipped, by kind.
     pub fn with_input_skips(mut self, skips: InputSkips) -> Self {
         self.input_skips = skips;
+        self
+    }
+
+    /// The floor with its own learned odometry network ([`FloorInput::odometry`]).
+    pub fn with_odometry(mut self, model: Arc<LearnedOdometry>) -> Self {
+        self.odometry = Some(model);
         self
     }
 

@@ -209,16 +209,32 @@ impl Frontend {
     /// the map frame by `map_offset_rad` (the PDR's `heading.map_offset_rad`); the PDR still
     /// runs for the matchers' motion state. Errors when the shipped weights cannot be read.
     pub fn with_odometry(
+        self,
+        odometry: Odometry,
+        map_offset_rad: f64,
+    ) -> Result<Self, PositioningError> {
+        self.with_odometry_model(odometry, None, map_offset_rad)
+    }
+
+    /// [`Frontend::with_odometry`] with the network `model` instead of the shipped one
+    /// (`None`: the shipped one): how an evaluation runs each floor on a network that never
+    /// trained on it (`wipdr eval --odometry-holdout`). `model` is not read under
+    /// [`Odometry::Steps`].
+    pub fn with_odometry_model(
         mut self,
         odometry: Odometry,
+        model: Option<Arc<LearnedOdometry>>,
         map_offset_rad: f64,
     ) -> Result<Self, PositioningError> {
         self.learned = match odometry {
             Odometry::Steps => None,
             Odometry::Learned => {
-                let model = LearnedOdometry::shipped_shared().map_err(|e| {
-                    PositioningError::InvalidConfig(ConfigError::new("odometry", e.to_string()))
-                })?;
+                let model = match model {
+                    Some(m) => m,
+                    None => LearnedOdometry::shipped_shared().map_err(|e| {
+                        PositioningError::InvalidConfig(ConfigError::new("odometry", e.to_string()))
+                    })?,
+                };
                 Some(Box::new(LearnedMotion {
                     stream: OdometryStream::new(model),
                     map_offset_rad,

@@ -69,6 +69,13 @@ pub struct Args {
     /// `offline = true` in the config.
     #[arg(long)]
     pub offline: bool,
+    /// Leave-one-floor-out learned odometry: each floor runs the network in
+    /// `DIR/<site>_<floor>.safetensors` (the label with `/` as `_`, e.g. `site1_F1`), the
+    /// one trained without that floor (`odometry-train lofo` writes them), instead of the
+    /// shipped weights (trained on every ILC floor). Needs `odometry = "learned"` in the
+    /// config; a floor without its file is an error.
+    #[arg(long, value_name = "DIR", conflicts_with = "shard")]
+    pub odometry_holdout: Option<PathBuf>,
 }
 
 /// `wipdr eval merge`.
@@ -114,6 +121,9 @@ pub struct Outputs<'a> {
     pub plot_walks: usize,
     /// Plot the worst walks of the last scheme.
     pub plot_worst: bool,
+    /// Where each floor's learned odometry came from (`--odometry-holdout`), written as
+    /// `motion.weights` in the JSON; `None`: the shipped weights, and no such field.
+    pub odometry_weights: Option<&'a serde_json::Value>,
 }
 
 /// Evaluates and prints; shared with `wipdr demo`.
@@ -128,6 +138,14 @@ pub fn evaluate_and_report(
     let (prepared, report, store) = evaluate_items(floors, cfg, schemes, &items, drawing)?;
     check_scored(&report)?;
     let mut value = report.json_document(&serde_json::to_value(cfg)?);
+    if let (Some(weights), Some(motion)) = (
+        out.odometry_weights,
+        value
+            .get_mut("motion")
+            .and_then(serde_json::Value::as_object_mut),
+    ) {
+        motion.insert("weights".into(), weights.clone());
+    }
     if let Some(store) = store {
         let started = std::time::Instant::now();
         report_page::add_drawing(&mut value, floors, &prepared, schemes, store)?;
@@ -358,6 +376,49 @@ fn check_scored(report: &EvalReport) -> Result<()> {
     Ok(())
 }
 
+/// The file of `--odometry-holdout DIR` for the floor labelled `label`: `site1/F1` ->
+/// `DIR/site1_F1.safetensors` (the names `odometry-train lofo` writes).
+pub fn holdout_weights_path(dir: &Path, label: &str) -> PathBuf {
+    dir.join(format!("{}.safetensors", label.replace('/', "_")))
+}
+
+/// Gives every floor the learned odometry of `--odometry-holdout DIR` that did not train on
+/// it; returns, per floor label, the file it runs (for the JSON's `motion.weights`).
+/// Refused unless the config's motion source is `learned` (the weights would be ignored).
+fn attach_holdout_odometry(
+    floors: &mut [FloorInput],
+    dir: &Path,
+    cfg: &EvalConfig,
+) -> Result<serde_json::Value> {
+    use wipdr_positioning::config::Odometry;
+    if cfg.positioner.odometry != Odometry::Learned {
+        bail!(
+            "--odometry-holdout {}: the config's motion source is `{}`, so the weights would              not be read; set `odometry = \"learned\"` in the config",
+            dir.display(),
+            cfg.positioner.odometry.name()
+        );
+    }
+    let mut used = serde_json::Map::new();
+    for floor in floors.iter_mut() {
+        let path = holdout_weights_path(dir, &floor.label);
+        let bytes = std::fs::read(&path).with_context(|| {
+            format!(
+                "--odometry-holdout: reading {}, the network held out on floor {:?}",
+                path.display(),
+                floor.label
+            )
+        })?;
+        let model = wipdr_pdr::odometry::LearnedOdometry::from_safetensors(&bytes)
+            .with_context(|| format!("--odometry-holdout: {}", path.display()))?;
+        floor.odometry = Some(std::sync::Arc::new(model));
+        used.insert(
+            floor.label.clone(),
+            serde_json::Value::from(path.display().to_string()),
+        );
+    }
+    Ok(serde_json::Value::Object(used))
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     if let Some(Sub::Merge { json, parts }) = &args.merge {
@@ -377,7 +438,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut cfg = load_config(args.config.as_deref())?;
     cfg.offline |= args.offline;
-    let floors = data::load_floors(&args.data)?;
+    let mut floors = data::load_floors(&args.data)?;
+    let odometry_weights = match &args.odometry_holdout {
+        Some(dir) => Some(attach_holdout_odometry(&mut floors, dir, &cfg)?),
+        None => None,
+    };
     let report = match (shard, args.json.as_deref()) {
         (Some(shard), Some(json)) => run_shard(&floors, &cfg, &args.schemes, shard, json)?,
         (Some(_), None) => bail!("--shard writes a shard file: give --json PART.json"),
@@ -392,6 +457,7 @@ pub fn run(args: Args) -> Result<()> {
                 plots: args.plots.as_deref(),
                 plot_walks: args.plot_walks,
                 plot_worst: args.plot_worst,
+                odometry_weights: odometry_weights.as_ref(),
             },
         )?,
     };
