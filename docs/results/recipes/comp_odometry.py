@@ -1,10 +1,10 @@
 """The tables of docs/results/odometry.md that a repository command gives in reasonable time:
-`wipdr eval` on the five ILC floors with the default motion source (steps) and with the shipped
-learned weights (`odometry = "learned"`, trained on all five floors: in-sample), and on the
-IPIN logfiles (other phones, another building: held out), every scheme there. The
-leave-one-floor-out training runs of `tools/odometry-train` and the fused schemes on the ILC
-floors with the learned source (four evaluations of every scheme, each over 5 minutes here) are
-in docs/experiments.md."""
+`wipdr eval` on the five ILC floors with the default motion source (steps) and with the
+learned one held out (`odometry = "learned"`, `--odometry-holdout fixtures/odometry/lofo`:
+each floor runs the network `odometry-train lofo` trained on the other four), every scheme,
+causal and offline; and on the IPIN logfiles (other phones, another building: the shipped
+network, held out), every scheme there. The training runs themselves (`tools/odometry-train`,
+about 30 minutes) are in docs/experiments.md."""
 
 import sys
 
@@ -14,12 +14,17 @@ from comp_common import config_file, row
 
 FLOORS = ["site1/F1", "site1/F2", "site2/F1", "site2/F2", "site2/F3"]
 
+# The leave-one-floor-out networks (`odometry-train lofo`; `site1_F1.safetensors` never saw
+# site1/F1), relative to the repository root where the commands run.
+LOFO = "fixtures/odometry/lofo"
 
-def ev(runs, learned, offline):
-    # The motion source's segment error does not depend on the schemes: `pdr` alone is enough.
-    args = ["eval", "--schemes", "pdr", "--data", *ilc_floors()]
-    if learned:
-        args += ["--config", config_file('odometry = "learned"\n')]
+
+def ilc_learned(runs, offline):
+    """Every scheme on the five floors with the learned source, each floor on its held-out
+    network."""
+    evaluation = sys.modules["recipes.evaluation"]
+    args = ["eval", "--data", *ilc_floors(), "--schemes", evaluation.SCHEMES,
+            "--config", config_file('odometry = "learned"\n'), "--odometry-holdout", LOFO]
     if offline:
         args += ["--offline"]
     return runs.wipdr_json(*args)
@@ -27,10 +32,11 @@ def ev(runs, learned, offline):
 
 @table("odometry-motion")
 def motion(runs):
-    """The motion source's per-segment displacement error, steps against learned (in-sample)."""
-    steps = ev(runs, False, False)["motion"]["summaries"]
-    learned = ev(runs, True, False)["motion"]["summaries"]
-    out = ["| floor | segments | steps mean / median (m) | learned, in-sample, mean / median (m) "
+    """The motion source's per-segment displacement error, steps against learned (held out)."""
+    evaluation = sys.modules["recipes.evaluation"]
+    steps = evaluation.ilc(runs)["motion"]["summaries"]
+    learned = ilc_learned(runs, False)["motion"]["summaries"]
+    out = ["| floor | segments | steps mean / median (m) | learned, held out, mean / median (m) "
            "| learned: truth in its 95 % ellipse |",
            "| --- | --- | --- | --- | --- |"]
     for f in FLOORS + ["pooled"]:
@@ -43,6 +49,33 @@ def motion(runs):
             sb = lb = ""
         out.append(row(f"{b}{f}{b}", s["segments"], f"{sb}{s['mean_m']:.3f}{sb} / {s['median_m']:.3f}",
                        f"{lb}{l['mean_m']:.3f}{lb} / {l['median_m']:.3f}", inside(l)))
+    return "\n".join(out)
+
+
+@table("odometry-ilc-fused")
+def ilc_fused(runs):
+    """Every scheme on the five floors with steps and with the learned source held out:
+    pooled mean / p95 (m), causal and offline."""
+    evaluation = sys.modules["recipes.evaluation"]
+    docs = [(evaluation.ilc(runs), ilc_learned(runs, False)),
+            (evaluation.ilc(runs, True), ilc_learned(runs, True))]
+    out = ["| scheme | causal, steps | causal, learned held out | offline, steps "
+           "| offline, learned held out |",
+           "| --- | --- | --- | --- | --- |"]
+    for name in evaluation.ORDER:
+        if name == "wifi":
+            continue
+        cells = [name]
+        for steps, learned in docs:
+            if name == "pdr" and steps is docs[1][0]:
+                cells += ["(causal)", "(causal)"]
+                continue
+            a, b = steps["pooled"][name], learned["pooled"][name]
+            cells += [f"**{a['mean']:.2f}** / {a['p95']:.2f}" if a["mean"] <= b["mean"]
+                      else f"{a['mean']:.2f} / {a['p95']:.2f}",
+                      f"**{b['mean']:.2f}** / {b['p95']:.2f}" if b["mean"] < a["mean"]
+                      else f"{b['mean']:.2f} / {b['p95']:.2f}"]
+        out.append(row(*cells))
     return "\n".join(out)
 
 
