@@ -17,6 +17,10 @@ use wipdr_pdr::{CheckedPdrConfig, Pdr, PdrConfig};
 /// Folds of the evaluation protocol within a floor (walks sorted by id, walk i in fold i % 5).
 pub const FOLDS: usize = 5;
 
+/// Version of the dataset file: 2 added the per-window step labels (`WalkRec::dense`).
+/// `load` refuses other versions (re-run `extract`).
+pub const DATASET_VERSION: u32 = 2;
+
 /// One segment between consecutive waypoints.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Segment {
@@ -61,11 +65,19 @@ pub struct WalkRec {
     pub data: Vec<f32>,
     /// Segments covered by the windows.
     pub segments: Vec<Segment>,
+    /// Dense pseudo-labels, one per window: the calibrated step model's displacement over
+    /// the window's output interval `(t_end - 1 s, t_end]` (the steps with `t` in it, as a
+    /// segment's `steps`), turned from the map frame into the rotation vector's frame by
+    /// `offset_floor` (as the segment labels, `label_rv`) and then into the window's yawed
+    /// frame (forward, right), the frame of the network's first two outputs, m.
+    pub dense: Vec<[f32; 2]>,
 }
 
 /// The whole dataset.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Dataset {
+    /// [`DATASET_VERSION`] (first, so that an older file fails the check on load).
+    pub version: u32,
     /// Floors in order.
     pub floors: Vec<String>,
     /// Walks, floor by floor, sorted by id within a floor.
@@ -160,6 +172,14 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
                 heading: wins.iter().map(|x| x.heading).collect(),
                 data: Vec::with_capacity(wins.len() * CHANNELS * WINDOW),
                 segments: Vec::new(),
+                dense: wins
+                    .iter()
+                    .map(|x| {
+                        let d = displacement_of_steps(&events, x.t_end - INTERVAL_MS, x.t_end);
+                        let d = world_to_local(x.heading, rotate_heading(d, -offset_floor));
+                        [d[0] as f32, d[1] as f32]
+                    })
+                    .collect(),
             };
             for x in &wins {
                 rec.data.extend_from_slice(&x.data);
@@ -201,6 +221,7 @@ pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
         bail!("no floor folders under {}", root.display());
     }
     let mut ds = Dataset {
+        version: DATASET_VERSION,
         floors: Vec::new(),
         walks: Vec::new(),
     };
@@ -234,12 +255,36 @@ pub fn save(ds: &Dataset, path: &Path) -> Result<String> {
 pub fn load(path: &Path) -> Result<(Dataset, String)> {
     let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
     let hash = hex(&Sha256::digest(&bytes));
-    let (ds, _) = bincode::serde::decode_from_slice(&bytes, bincode::config::standard())?;
+    let (ds, _): (Dataset, _) =
+        bincode::serde::decode_from_slice(&bytes, bincode::config::standard()).with_context(
+            || {
+                format!(
+                    "{}: not a version {DATASET_VERSION} dataset, re-run `extract`",
+                    path.display()
+                )
+            },
+        )?;
+    if ds.version != DATASET_VERSION {
+        bail!(
+            "{}: dataset version {}, want {DATASET_VERSION}: re-run `extract`",
+            path.display(),
+            ds.version
+        );
+    }
     Ok((ds, hash))
 }
 
 fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// A displacement `(east, north)` in the rotation vector's frame turned into the yawed frame
+/// of a window of heading `psi` (forward, right): the inverse of
+/// `wipdr_pdr::odometry::features::local_to_world`.
+pub fn world_to_local(psi: f64, d: [f64; 2]) -> [f64; 2] {
+    let (s, c) = psi.sin_cos();
+    // world = F (s, c) + R (c, -s)
+    [d[0] * s + d[1] * c, d[0] * c - d[1] * s]
 }
 
 /// The label of a segment for training: the waypoint displacement turned from the map frame
