@@ -292,3 +292,43 @@ pub fn world_to_local(psi: f64, d: [f64; 2]) -> [f64; 2] {
 pub fn label_rv(w: &WalkRec, s: &Segment) -> [f64; 2] {
     rotate_heading(s.truth, -w.offset_floor)
 }
+
+/// The waypoint track's position at `t` (map frame), linear between consecutive waypoints;
+/// `None` outside the waypoints' span.
+fn track_at(w: &WalkRec, t: i64) -> Option<[f64; 2]> {
+    let mut prev = w.first_waypoint;
+    if t < prev.0 {
+        return None;
+    }
+    for &(tb, pb) in &w.waypoints {
+        if t <= tb {
+            if tb <= prev.0 {
+                return Some(pb);
+            }
+            let f = (t - prev.0) as f64 / (tb - prev.0) as f64;
+            return Some([
+                prev.1[0] + f * (pb[0] - prev.1[0]),
+                prev.1[1] + f * (pb[1] - prev.1[1]),
+            ]);
+        }
+        prev = (tb, pb);
+    }
+    (t == prev.0).then_some(prev.1)
+}
+
+/// Dense labels from the waypoints: the displacement of the waypoint track (linear in time
+/// between consecutive waypoints) over each window's output interval, turned into the
+/// window's yawed frame as `WalkRec::dense`; `None` for a window outside the waypoints' span.
+pub fn truth_dense(w: &WalkRec) -> Vec<Option<[f32; 2]>> {
+    w.t_end
+        .iter()
+        .zip(&w.heading)
+        .map(|(&t, &h)| {
+            let a = track_at(w, t - INTERVAL_MS)?;
+            let b = track_at(w, t)?;
+            let d = rotate_heading([b[0] - a[0], b[1] - a[1]], -w.offset_floor);
+            let d = world_to_local(h, d);
+            Some([d[0] as f32, d[1] as f32])
+        })
+        .collect()
+}

@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|steps|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
 
 struct Args {
     cmd: String,
@@ -66,6 +66,7 @@ fn parse() -> Result<Args> {
             "--pretrain-batch" => a.cfg.pretrain_batch = v.parse()?,
             "--pretrain-lr" => a.cfg.pretrain_lr = v.parse()?,
             "--dense-weight" => a.cfg.dense_weight = v.parse()?,
+            "--dense-truth" => a.cfg.dense_truth = v.parse()?,
             _ => bail!("unknown option {k}\n{USAGE}"),
         }
     }
@@ -113,6 +114,7 @@ fn metadata(a: &Args, hash: &str, floors: &[String], secs: f64) -> BTreeMap<Stri
             ),
         ),
         ("dense_weight".into(), c.dense_weight.to_string()),
+        ("dense_truth".into(), c.dense_truth.to_string()),
     ])
 }
 
@@ -204,22 +206,36 @@ fn main() -> Result<()> {
             // the dense labels summed over each segment (each window weighted by its overlap,
             // as the network's outputs) against the segment's step displacement and truth:
             // a check of their frame and offset
-            let (mut to_steps, mut to_truth) = (Vec::new(), Vec::new());
+            let (mut to_steps, mut to_truth, mut track_to_truth) =
+                (Vec::new(), Vec::new(), Vec::new());
+            let mut covered = 0usize;
             for w in &ds.walks {
-                for sg in &w.segments {
+                let track = data::truth_dense(w);
+                covered += track.iter().flatten().count();
+                let sum = |labels: &dyn Fn(usize) -> Option<[f32; 2]>, sg: &data::Segment| {
                     let mut d = [0.0f64; 2];
                     for (k, &t) in w.t_end.iter().enumerate() {
                         let f = wipdr_pdr::odometry::overlap_fraction(t, sg.t_a, sg.t_b);
-                        let (x, _) = wipdr_pdr::odometry::features::local_to_world(
-                            w.heading[k],
-                            [f64::from(w.dense[k][0]), f64::from(w.dense[k][1])],
-                            [0.0; 2],
-                        );
-                        d = [d[0] + f * x[0], d[1] + f * x[1]];
+                        if f > 0.0 {
+                            let l = labels(k)?;
+                            let (x, _) = wipdr_pdr::odometry::features::local_to_world(
+                                w.heading[k],
+                                [f64::from(l[0]), f64::from(l[1])],
+                                [0.0; 2],
+                            );
+                            d = [d[0] + f * x[0], d[1] + f * x[1]];
+                        }
                     }
-                    let d = wipdr_pdr::odometry::rotate_heading(d, w.offset_floor);
-                    to_steps.push((d[0] - sg.steps[0]).hypot(d[1] - sg.steps[1]));
-                    to_truth.push((d[0] - sg.truth[0]).hypot(d[1] - sg.truth[1]));
+                    Some(wipdr_pdr::odometry::rotate_heading(d, w.offset_floor))
+                };
+                for sg in &w.segments {
+                    if let Some(d) = sum(&|k| Some(w.dense[k]), sg) {
+                        to_steps.push((d[0] - sg.steps[0]).hypot(d[1] - sg.steps[1]));
+                        to_truth.push((d[0] - sg.truth[0]).hypot(d[1] - sg.truth[1]));
+                    }
+                    if let Some(d) = sum(&|k| track[k], sg) {
+                        track_to_truth.push((d[0] - sg.truth[0]).hypot(d[1] - sg.truth[1]));
+                    }
                 }
             }
             let nd: usize = ds.walks.iter().map(|w| w.dense.len()).sum();
@@ -237,6 +253,11 @@ fn main() -> Result<()> {
                 "dense labels: {nd} windows, mean {speed:.3} m a second; summed over the segments: {:.3} m mean from the segments' steps, {:.3} m mean from the truth",
                 eval::mean(&to_steps),
                 eval::mean(&to_truth)
+            );
+            println!(
+                "waypoint-track labels (--dense-truth): {covered} windows inside the waypoints' span; summed over {} segments: {:.3} m mean from the truth",
+                track_to_truth.len(),
+                eval::mean(&track_to_truth)
             );
             println!(
                 "pooled: {} segments, steps mean {:.3} median {:.3}, mean squared error {mse:.3} m² (the unit of the training's MSE loss)",

@@ -3,7 +3,7 @@
 //! first epochs and then the Gaussian negative log-likelihood of the segment displacement
 //! under the summed learned covariance.
 
-use crate::data::{WalkRec, label_rv};
+use crate::data::{WalkRec, label_rv, truth_dense};
 use anyhow::{Result, bail};
 use candle_core::{D, DType, Device, Tensor, Var};
 use candle_nn::{Conv1d, Conv1dConfig, Linear, Module, Optimizer, VarBuilder, VarMap};
@@ -46,6 +46,9 @@ pub struct TrainConfig {
     pub pretrain_lr: f64,
     /// Weight of the dense-label MSE (on the batch's windows) added to the segment loss.
     pub dense_weight: f64,
+    /// Dense labels from the waypoint track (linear between waypoints) where the window's
+    /// interval lies inside the waypoints' span, the step model's elsewhere.
+    pub dense_truth: bool,
 }
 
 impl Default for TrainConfig {
@@ -66,6 +69,7 @@ impl Default for TrainConfig {
             pretrain_batch: 64,
             pretrain_lr: 2e-3,
             dense_weight: 0.0,
+            dense_truth: false,
         }
     }
 }
@@ -193,8 +197,8 @@ pub struct TrainSet {
 }
 
 impl TrainSet {
-    /// The windows and segments of `walks`.
-    pub fn of(walks: &[&WalkRec]) -> Self {
+    /// The windows and segments of `walks` (`dense_truth`: see [`TrainConfig::dense_truth`]).
+    pub fn of(walks: &[&WalkRec], dense_truth: bool) -> Self {
         let mut set = TrainSet {
             data: Vec::new(),
             heading: Vec::new(),
@@ -205,7 +209,13 @@ impl TrainSet {
             let base = set.heading.len();
             set.data.extend_from_slice(&w.data);
             set.heading.extend(w.heading.iter().map(|h| *h as f32));
-            set.dense.extend_from_slice(&w.dense);
+            if dense_truth {
+                let t = truth_dense(w);
+                set.dense
+                    .extend(w.dense.iter().zip(t).map(|(s, t)| t.unwrap_or(*s)));
+            } else {
+                set.dense.extend_from_slice(&w.dense);
+            }
             for s in &w.segments {
                 let parts: Vec<(usize, f32)> = w
                     .t_end
@@ -307,7 +317,7 @@ fn pretrain(net: &Net, varmap: &VarMap, set: &TrainSet, cfg: &TrainConfig) -> Re
 /// Trains a network on `walks`; returns the varmap and the final epoch's mean loss.
 pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     let dev = Device::Cpu;
-    let set = TrainSet::of(walks);
+    let set = TrainSet::of(walks, cfg.dense_truth);
     if set.segments.is_empty() {
         bail!("no training segments");
     }
