@@ -85,10 +85,10 @@ pub struct Dataset {
 }
 
 /// The base PDR configuration of the evaluation (`EvalConfig::default`): the library's
-/// defaults with heading snapping on.
-pub fn base_pdr() -> PdrConfig {
+/// defaults with heading snapping on (`snap = true`; off: a diagnostic).
+pub fn base_pdr_snap(snap: bool) -> PdrConfig {
     let mut cfg = PdrConfig::default();
-    cfg.heading.snap.enabled = true;
+    cfg.heading.snap.enabled = snap;
     cfg
 }
 
@@ -120,8 +120,8 @@ fn displacement_of_steps(ev: &[wipdr_core::StepEvent], t_a: i64, t_b: i64) -> [f
     [d.x, d.y]
 }
 
-fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
-    let base = base_pdr().check().context("the base PDR config")?;
+fn extract_floor(name: &str, walks: &[Walk], snap: bool) -> Result<Vec<WalkRec>> {
+    let base = base_pdr_snap(snap).check().context("the base PDR config")?;
     let cal = CalibrationConfig::default();
     // walks come sorted by id: fold = rank % 5
     let runs: Vec<_> = walks
@@ -214,8 +214,8 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
 }
 
 /// Reads every floor under `root` (through the io cache in `cache/io`) and extracts the
-/// dataset.
-pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
+/// dataset (`snap`: the step model's heading snapping, on in the evaluation).
+pub fn extract(root: &Path, cache: &Path, snap: bool) -> Result<Dataset> {
     let dirs = floor_dirs(root)?;
     if dirs.is_empty() {
         bail!("no floor folders under {}", root.display());
@@ -230,7 +230,7 @@ pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
             .with_context(|| format!("reading {}", d.display()))?;
         let name = fd.name.clone();
         let walks: Vec<Walk> = fd.walks.into_iter().map(|p| p.walk).collect();
-        let recs = extract_floor(&name, &walks)?;
+        let recs = extract_floor(&name, &walks, snap)?;
         eprintln!(
             "{name}: {} walks read, {} kept, {} windows, {} segments",
             walks.len(),

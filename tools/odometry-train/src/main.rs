@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|steps|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|steps-nosnap|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
 
 struct Args {
     cmd: String,
@@ -124,13 +124,35 @@ fn main() -> Result<()> {
     match a.cmd.as_str() {
         "extract" => {
             let t = Instant::now();
-            let ds = data::extract(&a.data, &a.cache)?;
+            let ds = data::extract(&a.data, &a.cache, true)?;
             let hash = data::save(&ds, &dataset_path(&a))?;
             eprintln!(
                 "{} walks, {:.1} s; sha256 {hash}",
                 ds.walks.len(),
                 t.elapsed().as_secs_f64()
             );
+        }
+        "steps-nosnap" => {
+            // a diagnostic, nothing written: the step model with heading snapping off (the
+            // evaluation has it on) against the same model with it on, on the segments
+            let on = data::load(&dataset_path(&a))?.0;
+            let off = data::extract(&a.data, &a.cache, false)?;
+            for (name, ds) in [("snapping on", &on), ("snapping off", &off)] {
+                let (mut e, mut dir) = (Vec::new(), Vec::new());
+                for s in ds.walks.iter().flat_map(|w| &w.segments) {
+                    e.push((s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]));
+                    if s.truth[0].hypot(s.truth[1]) >= 2.0 {
+                        dir.push(eval::dir_err(s.steps, s.truth));
+                    }
+                }
+                println!(
+                    "steps, {name}: {} segments, mean {:.3} median {:.3} | |direction err| {:.1} deg (segments >= 2 m)",
+                    e.len(),
+                    eval::mean(&e),
+                    eval::median(&e),
+                    eval::mean(&dir)
+                );
+            }
         }
         "score" => {
             // re-score the models `lofo` saved, without training
