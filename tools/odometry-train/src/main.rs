@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|steps|steps-nosnap|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|steps-nosnap|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--swa-epochs N] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
 
 struct Args {
     cmd: String,
@@ -67,6 +67,7 @@ fn parse() -> Result<Args> {
             "--pretrain-lr" => a.cfg.pretrain_lr = v.parse()?,
             "--dense-weight" => a.cfg.dense_weight = v.parse()?,
             "--dense-truth" => a.cfg.dense_truth = v.parse()?,
+            "--swa-epochs" => a.cfg.swa_epochs = v.parse()?,
             _ => bail!("unknown option {k}\n{USAGE}"),
         }
     }
@@ -115,6 +116,7 @@ fn metadata(a: &Args, hash: &str, floors: &[String], secs: f64) -> BTreeMap<Stri
         ),
         ("dense_weight".into(), c.dense_weight.to_string()),
         ("dense_truth".into(), c.dense_truth.to_string()),
+        ("swa_epochs".into(), c.swa_epochs.to_string()),
     ])
 }
 

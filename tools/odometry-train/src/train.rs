@@ -49,6 +49,9 @@ pub struct TrainConfig {
     /// Dense labels from the waypoint track (linear between waypoints) where the window's
     /// interval lies inside the waypoints' span, the step model's elsewhere.
     pub dense_truth: bool,
+    /// The returned weights are the mean of the weights at the end of each of the last
+    /// `swa_epochs` segment epochs (stochastic weight averaging; 0: the last epoch's).
+    pub swa_epochs: usize,
 }
 
 impl Default for TrainConfig {
@@ -70,6 +73,7 @@ impl Default for TrainConfig {
             pretrain_lr: 2e-3,
             dense_weight: 0.0,
             dense_truth: false,
+            swa_epochs: 0,
         }
     }
 }
@@ -340,6 +344,7 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     let mut order: Vec<usize> = (0..set.segments.len()).collect();
     let mut last_loss = f64::NAN;
     let per = CHANNELS * WINDOW;
+    let mut swa: Option<Vec<Tensor>> = None;
     for epoch in 0..cfg.epochs {
         let lr = cosine(cfg.lr, epoch, cfg.epochs);
         opt.set_learning_rate(lr);
@@ -455,6 +460,26 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
             "  epoch {epoch:>3} {} loss {last_loss:.4}{dense} lr {lr:.2e}",
             if nll { "nll" } else { "mse" }
         );
+        if epoch + cfg.swa_epochs >= cfg.epochs {
+            let vars = varmap.all_vars();
+            swa = Some(match swa {
+                None => vars
+                    .iter()
+                    .map(|v| v.as_tensor().detach())
+                    .collect::<Vec<_>>(),
+                Some(acc) => acc
+                    .iter()
+                    .zip(&vars)
+                    .map(|(a, v)| a + v.as_tensor().detach())
+                    .collect::<Result<Vec<_>, _>>()?,
+            });
+        }
+    }
+    if let Some(acc) = swa {
+        let n = cfg.swa_epochs.min(cfg.epochs) as f64;
+        for (a, v) in acc.iter().zip(varmap.all_vars()) {
+            v.set(&(a / n)?)?;
+        }
     }
     Ok((varmap, last_loss))
 }
