@@ -187,6 +187,9 @@ pub fn init_seeded(varmap: &VarMap, seed: u64) -> Result<()> {
     Ok(())
 }
 
+/// The windows of a segment: (window index, fraction of its interval inside the segment).
+pub type SegmentWindows = Vec<(usize, f32)>;
+
 /// The training set flattened: every window of the training walks, and every segment as
 /// (label in the rotation vector frame, list of (window index, fraction)).
 pub struct TrainSet {
@@ -197,7 +200,7 @@ pub struct TrainSet {
     /// The step model's displacement over each window's output interval, yawed frame.
     pub dense: Vec<[f32; 2]>,
     /// Segments.
-    pub segments: Vec<([f32; 2], Vec<(usize, f32)>)>,
+    pub segments: Vec<([f32; 2], SegmentWindows)>,
 }
 
 impl TrainSet {
