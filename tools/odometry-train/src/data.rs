@@ -17,6 +17,10 @@ use wipdr_pdr::{CheckedPdrConfig, Pdr, PdrConfig};
 /// Folds of the evaluation protocol within a floor (walks sorted by id, walk i in fold i % 5).
 pub const FOLDS: usize = 5;
 
+/// Version of the dataset file: 2 added the per-window step labels (`WalkRec::dense`).
+/// `load` refuses other versions (re-run `extract`).
+pub const DATASET_VERSION: u32 = 2;
+
 /// One segment between consecutive waypoints.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Segment {
@@ -61,11 +65,19 @@ pub struct WalkRec {
     pub data: Vec<f32>,
     /// Segments covered by the windows.
     pub segments: Vec<Segment>,
+    /// Dense pseudo-labels, one per window: the calibrated step model's displacement over
+    /// the window's output interval `(t_end - 1 s, t_end]` (the steps with `t` in it, as a
+    /// segment's `steps`), turned from the map frame into the rotation vector's frame by
+    /// `offset_floor` (as the segment labels, `label_rv`) and then into the window's yawed
+    /// frame (forward, right), the frame of the network's first two outputs, m.
+    pub dense: Vec<[f32; 2]>,
 }
 
 /// The whole dataset.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Dataset {
+    /// [`DATASET_VERSION`] (first, so that an older file fails the check on load).
+    pub version: u32,
     /// Floors in order.
     pub floors: Vec<String>,
     /// Walks, floor by floor, sorted by id within a floor.
@@ -73,10 +85,10 @@ pub struct Dataset {
 }
 
 /// The base PDR configuration of the evaluation (`EvalConfig::default`): the library's
-/// defaults with heading snapping on.
-pub fn base_pdr() -> PdrConfig {
+/// defaults with heading snapping on (`snap = true`; off: a diagnostic).
+pub fn base_pdr_snap(snap: bool) -> PdrConfig {
     let mut cfg = PdrConfig::default();
-    cfg.heading.snap.enabled = true;
+    cfg.heading.snap.enabled = snap;
     cfg
 }
 
@@ -108,8 +120,8 @@ fn displacement_of_steps(ev: &[wipdr_core::StepEvent], t_a: i64, t_b: i64) -> [f
     [d.x, d.y]
 }
 
-fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
-    let base = base_pdr().check().context("the base PDR config")?;
+fn extract_floor(name: &str, walks: &[Walk], snap: bool) -> Result<Vec<WalkRec>> {
+    let base = base_pdr_snap(snap).check().context("the base PDR config")?;
     let cal = CalibrationConfig::default();
     // walks come sorted by id: fold = rank % 5
     let runs: Vec<_> = walks
@@ -160,6 +172,14 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
                 heading: wins.iter().map(|x| x.heading).collect(),
                 data: Vec::with_capacity(wins.len() * CHANNELS * WINDOW),
                 segments: Vec::new(),
+                dense: wins
+                    .iter()
+                    .map(|x| {
+                        let d = displacement_of_steps(&events, x.t_end - INTERVAL_MS, x.t_end);
+                        let d = world_to_local(x.heading, rotate_heading(d, -offset_floor));
+                        [d[0] as f32, d[1] as f32]
+                    })
+                    .collect(),
             };
             for x in &wins {
                 rec.data.extend_from_slice(&x.data);
@@ -194,13 +214,14 @@ fn extract_floor(name: &str, walks: &[Walk]) -> Result<Vec<WalkRec>> {
 }
 
 /// Reads every floor under `root` (through the io cache in `cache/io`) and extracts the
-/// dataset.
-pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
+/// dataset (`snap`: the step model's heading snapping, on in the evaluation).
+pub fn extract(root: &Path, cache: &Path, snap: bool) -> Result<Dataset> {
     let dirs = floor_dirs(root)?;
     if dirs.is_empty() {
         bail!("no floor folders under {}", root.display());
     }
     let mut ds = Dataset {
+        version: DATASET_VERSION,
         floors: Vec::new(),
         walks: Vec::new(),
     };
@@ -209,7 +230,7 @@ pub fn extract(root: &Path, cache: &Path) -> Result<Dataset> {
             .with_context(|| format!("reading {}", d.display()))?;
         let name = fd.name.clone();
         let walks: Vec<Walk> = fd.walks.into_iter().map(|p| p.walk).collect();
-        let recs = extract_floor(&name, &walks)?;
+        let recs = extract_floor(&name, &walks, snap)?;
         eprintln!(
             "{name}: {} walks read, {} kept, {} windows, {} segments",
             walks.len(),
@@ -234,7 +255,22 @@ pub fn save(ds: &Dataset, path: &Path) -> Result<String> {
 pub fn load(path: &Path) -> Result<(Dataset, String)> {
     let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
     let hash = hex(&Sha256::digest(&bytes));
-    let (ds, _) = bincode::serde::decode_from_slice(&bytes, bincode::config::standard())?;
+    let (ds, _): (Dataset, _) =
+        bincode::serde::decode_from_slice(&bytes, bincode::config::standard()).with_context(
+            || {
+                format!(
+                    "{}: not a version {DATASET_VERSION} dataset, re-run `extract`",
+                    path.display()
+                )
+            },
+        )?;
+    if ds.version != DATASET_VERSION {
+        bail!(
+            "{}: dataset version {}, want {DATASET_VERSION}: re-run `extract`",
+            path.display(),
+            ds.version
+        );
+    }
     Ok((ds, hash))
 }
 
@@ -242,8 +278,57 @@ fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
+/// A displacement `(east, north)` in the rotation vector's frame turned into the yawed frame
+/// of a window of heading `psi` (forward, right): the inverse of
+/// `wipdr_pdr::odometry::features::local_to_world`.
+pub fn world_to_local(psi: f64, d: [f64; 2]) -> [f64; 2] {
+    let (s, c) = psi.sin_cos();
+    // world = F (s, c) + R (c, -s)
+    [d[0] * s + d[1] * c, d[0] * c - d[1] * s]
+}
+
 /// The label of a segment for training: the waypoint displacement turned from the map frame
 /// into the rotation vector's frame by the floor's offset.
 pub fn label_rv(w: &WalkRec, s: &Segment) -> [f64; 2] {
     rotate_heading(s.truth, -w.offset_floor)
+}
+
+/// The waypoint track's position at `t` (map frame), linear between consecutive waypoints;
+/// `None` outside the waypoints' span.
+fn track_at(w: &WalkRec, t: i64) -> Option<[f64; 2]> {
+    let mut prev = w.first_waypoint;
+    if t < prev.0 {
+        return None;
+    }
+    for &(tb, pb) in &w.waypoints {
+        if t <= tb {
+            if tb <= prev.0 {
+                return Some(pb);
+            }
+            let f = (t - prev.0) as f64 / (tb - prev.0) as f64;
+            return Some([
+                prev.1[0] + f * (pb[0] - prev.1[0]),
+                prev.1[1] + f * (pb[1] - prev.1[1]),
+            ]);
+        }
+        prev = (tb, pb);
+    }
+    (t == prev.0).then_some(prev.1)
+}
+
+/// Dense labels from the waypoints: the displacement of the waypoint track (linear in time
+/// between consecutive waypoints) over each window's output interval, turned into the
+/// window's yawed frame as `WalkRec::dense`; `None` for a window outside the waypoints' span.
+pub fn truth_dense(w: &WalkRec) -> Vec<Option<[f32; 2]>> {
+    w.t_end
+        .iter()
+        .zip(&w.heading)
+        .map(|(&t, &h)| {
+            let a = track_at(w, t - INTERVAL_MS)?;
+            let b = track_at(w, t)?;
+            let d = rotate_heading([b[0] - a[0], b[1] - a[1]], -w.offset_floor);
+            let d = world_to_local(h, d);
+            Some([d[0] as f32, d[1] as f32])
+        })
+        .collect()
 }

@@ -48,7 +48,8 @@ fn along(len: f64, dir: [f64; 2]) -> [f64; 2] {
     }
 }
 
-fn dir_err(a: [f64; 2], b: [f64; 2]) -> f64 {
+/// |direction difference| of two displacements, degrees.
+pub fn dir_err(a: [f64; 2], b: [f64; 2]) -> f64 {
     let d = a[0].atan2(a[1]) - b[0].atan2(b[1]);
     wipdr_core::angle::wrap_pi(d).abs().to_degrees()
 }

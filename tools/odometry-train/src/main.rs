@@ -13,7 +13,7 @@ use train::TrainConfig;
 use wipdr_pdr::odometry::LearnedOdometry;
 use wipdr_pdr::odometry::features::{CHANNELS, WINDOW};
 
-const USAGE: &str = "usage: odometry-train <extract|steps|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--seed N] [--out FILE] [--fixture FILE] [--holdout FLOOR]";
+const USAGE: &str = "usage: odometry-train <extract|steps|steps-nosnap|lofo|score|ship|bench> [--data DIR] [--cache DIR] [--epochs N] [--mse-epochs N] [--batch N] [--lr X] [--seed N] [--channels A,B,C] [--strides A,B,C] [--kernel N] [--hidden N] [--mirror BOOL] [--pretrain-epochs N] [--pretrain-batch N] [--pretrain-lr X] [--dense-weight X] [--dense-truth BOOL] [--swa-epochs N] [--out FILE] [--fixture FILE] [--holdout FLOOR] [--models DIR]";
 
 struct Args {
     cmd: String,
@@ -22,6 +22,7 @@ struct Args {
     out: Option<PathBuf>,
     fixture: Option<PathBuf>,
     holdout: Option<String>,
+    models: Option<PathBuf>,
     cfg: TrainConfig,
 }
 
@@ -35,6 +36,7 @@ fn parse() -> Result<Args> {
         out: None,
         fixture: None,
         holdout: None,
+        models: None,
         cfg: TrainConfig::default(),
     };
     while let Some(k) = it.next() {
@@ -45,6 +47,7 @@ fn parse() -> Result<Args> {
             "--out" => a.out = Some(v.into()),
             "--fixture" => a.fixture = Some(v.into()),
             "--holdout" => a.holdout = Some(v),
+            "--models" => a.models = Some(v.into()),
             "--epochs" => a.cfg.epochs = v.parse()?,
             "--mse-epochs" => a.cfg.mse_epochs = v.parse()?,
             "--seed" => a.cfg.seed = v.parse()?,
@@ -58,6 +61,13 @@ fn parse() -> Result<Args> {
             }
             "--hidden" => a.cfg.hidden = v.parse()?,
             "--mirror" => a.cfg.mirror = v.parse()?,
+            "--kernel" => a.cfg.kernel = v.parse()?,
+            "--pretrain-epochs" => a.cfg.pretrain_epochs = v.parse()?,
+            "--pretrain-batch" => a.cfg.pretrain_batch = v.parse()?,
+            "--pretrain-lr" => a.cfg.pretrain_lr = v.parse()?,
+            "--dense-weight" => a.cfg.dense_weight = v.parse()?,
+            "--dense-truth" => a.cfg.dense_truth = v.parse()?,
+            "--swa-epochs" => a.cfg.swa_epochs = v.parse()?,
             _ => bail!("unknown option {k}\n{USAGE}"),
         }
     }
@@ -69,6 +79,11 @@ fn parse() -> Result<Args> {
 
 fn dataset_path(a: &Args) -> PathBuf {
     a.cache.join("ilc-dataset.bin")
+}
+
+/// The folder of the leave-one-floor-out models (`--models`, default `CACHE/lofo`).
+fn models_dir(a: &Args) -> PathBuf {
+    a.models.clone().unwrap_or_else(|| a.cache.join("lofo"))
 }
 
 fn metadata(a: &Args, hash: &str, floors: &[String], secs: f64) -> BTreeMap<String, String> {
@@ -92,6 +107,16 @@ fn metadata(a: &Args, hash: &str, floors: &[String], secs: f64) -> BTreeMap<Stri
         ("batch".into(), c.batch.to_string()),
         ("lr".into(), c.lr.to_string()),
         ("mirror".into(), c.mirror.to_string()),
+        (
+            "pretrain".into(),
+            format!(
+                "{} epochs, batch {}, lr {}",
+                c.pretrain_epochs, c.pretrain_batch, c.pretrain_lr
+            ),
+        ),
+        ("dense_weight".into(), c.dense_weight.to_string()),
+        ("dense_truth".into(), c.dense_truth.to_string()),
+        ("swa_epochs".into(), c.swa_epochs.to_string()),
     ])
 }
 
@@ -101,7 +126,7 @@ fn main() -> Result<()> {
     match a.cmd.as_str() {
         "extract" => {
             let t = Instant::now();
-            let ds = data::extract(&a.data, &a.cache)?;
+            let ds = data::extract(&a.data, &a.cache, true)?;
             let hash = data::save(&ds, &dataset_path(&a))?;
             eprintln!(
                 "{} walks, {:.1} s; sha256 {hash}",
@@ -109,16 +134,35 @@ fn main() -> Result<()> {
                 t.elapsed().as_secs_f64()
             );
         }
+        "steps-nosnap" => {
+            // a diagnostic, nothing written: the step model with heading snapping off (the
+            // evaluation has it on) against the same model with it on, on the segments
+            let on = data::load(&dataset_path(&a))?.0;
+            let off = data::extract(&a.data, &a.cache, false)?;
+            for (name, ds) in [("snapping on", &on), ("snapping off", &off)] {
+                let (mut e, mut dir) = (Vec::new(), Vec::new());
+                for s in ds.walks.iter().flat_map(|w| &w.segments) {
+                    e.push((s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]));
+                    if s.truth[0].hypot(s.truth[1]) >= 2.0 {
+                        dir.push(eval::dir_err(s.steps, s.truth));
+                    }
+                }
+                println!(
+                    "steps, {name}: {} segments, mean {:.3} median {:.3} | |direction err| {:.1} deg (segments >= 2 m)",
+                    e.len(),
+                    eval::mean(&e),
+                    eval::median(&e),
+                    eval::mean(&dir)
+                );
+            }
+        }
         "score" => {
             // re-score the models `lofo` saved, without training
             let (ds, hash) = data::load(&dataset_path(&a))?;
             println!("dataset sha256 {hash}");
             let mut pooled = eval::Scores::default();
             for f in &ds.floors {
-                let path = a
-                    .cache
-                    .join("lofo")
-                    .join(format!("{}.safetensors", f.replace('/', "_")));
+                let path = models_dir(&a).join(format!("{}.safetensors", f.replace('/', "_")));
                 let model = LearnedOdometry::from_safetensors(
                     &std::fs::read(&path).with_context(|| format!("{}", path.display()))?,
                 )?;
@@ -183,6 +227,62 @@ fn main() -> Result<()> {
                 })
                 .collect();
             let mse = s.iter().map(|e| e * e).sum::<f64>() / s.len() as f64;
+            // the dense labels summed over each segment (each window weighted by its overlap,
+            // as the network's outputs) against the segment's step displacement and truth:
+            // a check of their frame and offset
+            let (mut to_steps, mut to_truth, mut track_to_truth) =
+                (Vec::new(), Vec::new(), Vec::new());
+            let mut covered = 0usize;
+            for w in &ds.walks {
+                let track = data::truth_dense(w);
+                covered += track.iter().flatten().count();
+                let sum = |labels: &dyn Fn(usize) -> Option<[f32; 2]>, sg: &data::Segment| {
+                    let mut d = [0.0f64; 2];
+                    for (k, &t) in w.t_end.iter().enumerate() {
+                        let f = wipdr_pdr::odometry::overlap_fraction(t, sg.t_a, sg.t_b);
+                        if f > 0.0 {
+                            let l = labels(k)?;
+                            let (x, _) = wipdr_pdr::odometry::features::local_to_world(
+                                w.heading[k],
+                                [f64::from(l[0]), f64::from(l[1])],
+                                [0.0; 2],
+                            );
+                            d = [d[0] + f * x[0], d[1] + f * x[1]];
+                        }
+                    }
+                    Some(wipdr_pdr::odometry::rotate_heading(d, w.offset_floor))
+                };
+                for sg in &w.segments {
+                    if let Some(d) = sum(&|k| Some(w.dense[k]), sg) {
+                        to_steps.push((d[0] - sg.steps[0]).hypot(d[1] - sg.steps[1]));
+                        to_truth.push((d[0] - sg.truth[0]).hypot(d[1] - sg.truth[1]));
+                    }
+                    if let Some(d) = sum(&|k| track[k], sg) {
+                        track_to_truth.push((d[0] - sg.truth[0]).hypot(d[1] - sg.truth[1]));
+                    }
+                }
+            }
+            let nd: usize = ds.walks.iter().map(|w| w.dense.len()).sum();
+            let speed = ds
+                .walks
+                .iter()
+                .flat_map(|w| {
+                    w.dense
+                        .iter()
+                        .map(|d| f64::from(d[0]).hypot(f64::from(d[1])))
+                })
+                .sum::<f64>()
+                / nd as f64;
+            println!(
+                "dense labels: {nd} windows, mean {speed:.3} m a second; summed over the segments: {:.3} m mean from the segments' steps, {:.3} m mean from the truth",
+                eval::mean(&to_steps),
+                eval::mean(&to_truth)
+            );
+            println!(
+                "waypoint-track labels (--dense-truth): {covered} windows inside the waypoints' span; summed over {} segments: {:.3} m mean from the truth",
+                track_to_truth.len(),
+                eval::mean(&track_to_truth)
+            );
             println!(
                 "pooled: {} segments, steps mean {:.3} median {:.3}, mean squared error {mse:.3} m² (the unit of the training's MSE loss)",
                 s.len(),
@@ -193,7 +293,7 @@ fn main() -> Result<()> {
         "lofo" => {
             let (ds, hash) = data::load(&dataset_path(&a))?;
             println!("dataset sha256 {hash}");
-            let out_dir = a.cache.join("lofo");
+            let out_dir = models_dir(&a);
             std::fs::create_dir_all(&out_dir)?;
             let mut pooled = eval::Scores::default();
             let floors: Vec<String> = match &a.holdout {
@@ -221,6 +321,15 @@ fn main() -> Result<()> {
                     &path,
                 )?;
                 let model = LearnedOdometry::from_safetensors(&std::fs::read(&path)?)?;
+                let mut tr = eval::Scores::default();
+                for w in &train {
+                    tr.add(&model, w)?;
+                }
+                eprintln!(
+                    "  training floors (in-sample): learned mean {:.3}, steps mean {:.3}",
+                    eval::mean(&tr.learned),
+                    eval::mean(&tr.steps)
+                );
                 let mut s = eval::Scores::default();
                 for w in &test {
                     s.add(&model, w)?;
@@ -232,7 +341,7 @@ fn main() -> Result<()> {
                 pooled.extend(&s);
             }
             println!("pooled: {}", pooled.summary());
-            let js = a.cache.join("lofo/scores.json");
+            let js = out_dir.join("scores.json");
             std::fs::write(&js, serde_json::to_vec(&pooled)?)?;
         }
         "ship" | "fixture" => {

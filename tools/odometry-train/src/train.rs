@@ -3,7 +3,7 @@
 //! first epochs and then the Gaussian negative log-likelihood of the segment displacement
 //! under the summed learned covariance.
 
-use crate::data::{WalkRec, label_rv};
+use crate::data::{WalkRec, label_rv, truth_dense};
 use anyhow::{Result, bail};
 use candle_core::{D, DType, Device, Tensor, Var};
 use candle_nn::{Conv1d, Conv1dConfig, Linear, Module, Optimizer, VarBuilder, VarMap};
@@ -37,6 +37,21 @@ pub struct TrainConfig {
     pub hidden: usize,
     /// Mirror half of the batches left-right (augmentation).
     pub mirror: bool,
+    /// Epochs of pretraining on every window with the step model's dense labels (MSE on the
+    /// displacement outputs), before the segment epochs.
+    pub pretrain_epochs: usize,
+    /// Windows per pretraining batch.
+    pub pretrain_batch: usize,
+    /// Learning rate of the pretraining (cosine decay over its epochs).
+    pub pretrain_lr: f64,
+    /// Weight of the dense-label MSE (on the batch's windows) added to the segment loss.
+    pub dense_weight: f64,
+    /// Dense labels from the waypoint track (linear between waypoints) where the window's
+    /// interval lies inside the waypoints' span, the step model's elsewhere.
+    pub dense_truth: bool,
+    /// The returned weights are the mean of the weights at the end of each of the last
+    /// `swa_epochs` segment epochs (stochastic weight averaging; 0: the last epoch's).
+    pub swa_epochs: usize,
 }
 
 impl Default for TrainConfig {
@@ -53,6 +68,12 @@ impl Default for TrainConfig {
             kernel: 5,
             hidden: 64,
             mirror: true,
+            pretrain_epochs: 0,
+            pretrain_batch: 64,
+            pretrain_lr: 2e-3,
+            dense_weight: 0.0,
+            dense_truth: false,
+            swa_epochs: 0,
         }
     }
 }
@@ -166,6 +187,9 @@ pub fn init_seeded(varmap: &VarMap, seed: u64) -> Result<()> {
     Ok(())
 }
 
+/// The windows of a segment: (window index, fraction of its interval inside the segment).
+pub type SegmentWindows = Vec<(usize, f32)>;
+
 /// The training set flattened: every window of the training walks, and every segment as
 /// (label in the rotation vector frame, list of (window index, fraction)).
 pub struct TrainSet {
@@ -173,22 +197,32 @@ pub struct TrainSet {
     pub data: Vec<f32>,
     /// Frame heading of each window.
     pub heading: Vec<f32>,
+    /// The step model's displacement over each window's output interval, yawed frame.
+    pub dense: Vec<[f32; 2]>,
     /// Segments.
-    pub segments: Vec<([f32; 2], Vec<(usize, f32)>)>,
+    pub segments: Vec<([f32; 2], SegmentWindows)>,
 }
 
 impl TrainSet {
-    /// The windows and segments of `walks`.
-    pub fn of(walks: &[&WalkRec]) -> Self {
+    /// The windows and segments of `walks` (`dense_truth`: see [`TrainConfig::dense_truth`]).
+    pub fn of(walks: &[&WalkRec], dense_truth: bool) -> Self {
         let mut set = TrainSet {
             data: Vec::new(),
             heading: Vec::new(),
+            dense: Vec::new(),
             segments: Vec::new(),
         };
         for w in walks {
             let base = set.heading.len();
             set.data.extend_from_slice(&w.data);
             set.heading.extend(w.heading.iter().map(|h| *h as f32));
+            if dense_truth {
+                let t = truth_dense(w);
+                set.dense
+                    .extend(w.dense.iter().zip(t).map(|(s, t)| t.unwrap_or(*s)));
+            } else {
+                set.dense.extend_from_slice(&w.dense);
+            }
             for s in &w.segments {
                 let parts: Vec<(usize, f32)> = w
                     .t_end
@@ -209,10 +243,88 @@ impl TrainSet {
     }
 }
 
+/// Left-right mirror of window data `[n, CHANNELS * WINDOW]` in place: the right
+/// acceleration and the forward and up angular rates change sign.
+fn mirror_windows(x: &mut [f32]) {
+    let per = CHANNELS * WINDOW;
+    for w in x.chunks_exact_mut(per) {
+        for ch in [1usize, 3, 5] {
+            for v in &mut w[ch * WINDOW..(ch + 1) * WINDOW] {
+                *v = -*v;
+            }
+        }
+    }
+}
+
+/// The cosine learning rate of `epoch` out of `epochs`, starting at `lr`.
+fn cosine(lr: f64, epoch: usize, epochs: usize) -> f64 {
+    lr * 0.5 * (1.0 + (std::f64::consts::PI * epoch as f64 / epochs as f64).cos())
+}
+
+/// The dense-label MSE: the displacement outputs `out[:, 0..2]` against `y` (`[n, 2]`, yawed
+/// frame), summed over the two components, mean over windows.
+fn dense_mse(out: &Tensor, y: &Tensor) -> Result<Tensor> {
+    Ok((out.narrow(1, 0, 2)? - y)?.sqr()?.sum(1)?.mean_all()?)
+}
+
+/// Pretraining on every window with the step model's dense labels (MSE), its own AdamW
+/// and batch order (a generator of its own, so that the segment epochs' order does not
+/// depend on it).
+fn pretrain(net: &Net, varmap: &VarMap, set: &TrainSet, cfg: &TrainConfig) -> Result<()> {
+    let dev = Device::Cpu;
+    let mut opt = candle_nn::AdamW::new(
+        varmap.all_vars(),
+        candle_nn::ParamsAdamW {
+            lr: cfg.pretrain_lr,
+            weight_decay: cfg.weight_decay,
+            ..Default::default()
+        },
+    )?;
+    let mut rng = Rng::new(cfg.seed ^ 0xDE45_E000);
+    let mut order: Vec<usize> = (0..set.dense.len()).collect();
+    let per = CHANNELS * WINDOW;
+    for epoch in 0..cfg.pretrain_epochs {
+        let lr = cosine(cfg.pretrain_lr, epoch, cfg.pretrain_epochs);
+        opt.set_learning_rate(lr);
+        rng.shuffle(&mut order);
+        let (mut sum, mut count) = (0.0, 0usize);
+        for chunk in order.chunks(cfg.pretrain_batch) {
+            let n = chunk.len();
+            let mut x = Vec::with_capacity(n * per);
+            let mut y = Vec::with_capacity(n * 2);
+            for &k in chunk {
+                x.extend_from_slice(&set.data[k * per..(k + 1) * per]);
+                y.extend_from_slice(&set.dense[k]);
+            }
+            if cfg.mirror && rng.uniform() < 0.5 {
+                mirror_windows(&mut x);
+                for v in y.iter_mut().skip(1).step_by(2) {
+                    *v = -*v;
+                }
+            }
+            let x = Tensor::from_vec(x, (n, CHANNELS, WINDOW), &dev)?;
+            let y = Tensor::from_vec(y, (n, 2), &dev)?;
+            let loss = dense_mse(&net.forward(&x)?, &y)?;
+            opt.backward_step(&loss)?;
+            let l = f64::from(loss.to_scalar::<f32>()?);
+            if !l.is_finite() {
+                bail!("non-finite pretraining loss at epoch {epoch}");
+            }
+            sum += l * n as f64;
+            count += n;
+        }
+        eprintln!(
+            "  pretrain {epoch:>3} dense mse {:.4} m² a window, lr {lr:.2e}",
+            sum / count as f64
+        );
+    }
+    Ok(())
+}
+
 /// Trains a network on `walks`; returns the varmap and the final epoch's mean loss.
 pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     let dev = Device::Cpu;
-    let set = TrainSet::of(walks);
+    let set = TrainSet::of(walks, cfg.dense_truth);
     if set.segments.is_empty() {
         bail!("no training segments");
     }
@@ -220,6 +332,9 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
     let net = Net::new(cfg, vb, &dev)?;
     init_seeded(&varmap, cfg.seed)?;
+    if cfg.pretrain_epochs > 0 {
+        pretrain(&net, &varmap, &set, cfg)?;
+    }
     let mut opt = candle_nn::AdamW::new(
         varmap.all_vars(),
         candle_nn::ParamsAdamW {
@@ -232,14 +347,13 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     let mut order: Vec<usize> = (0..set.segments.len()).collect();
     let mut last_loss = f64::NAN;
     let per = CHANNELS * WINDOW;
+    let mut swa: Option<Vec<Tensor>> = None;
     for epoch in 0..cfg.epochs {
-        // cosine learning-rate decay
-        let lr =
-            cfg.lr * 0.5 * (1.0 + (std::f64::consts::PI * epoch as f64 / cfg.epochs as f64).cos());
+        let lr = cosine(cfg.lr, epoch, cfg.epochs);
         opt.set_learning_rate(lr);
         rng.shuffle(&mut order);
         let nll = epoch >= cfg.mse_epochs;
-        let (mut sum, mut count) = (0.0, 0usize);
+        let (mut sum, mut count, mut dense_sum) = (0.0, 0usize, 0.0);
         for chunk in order.chunks(cfg.batch) {
             // windows used by the batch, renumbered
             let mut local: BTreeMap<usize, usize> = BTreeMap::new();
@@ -253,22 +367,22 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
             let mut x = vec![0f32; nw * per];
             let mut sin = vec![0f32; nw];
             let mut cos = vec![0f32; nw];
+            let mut yd = vec![0f32; nw * 2];
             let mut mirrored = false;
             for (&k, &j) in &local {
                 x[j * per..(j + 1) * per].copy_from_slice(&set.data[k * per..(k + 1) * per]);
                 sin[j] = set.heading[k].sin();
                 cos[j] = set.heading[k].cos();
+                yd[2 * j..2 * j + 2].copy_from_slice(&set.dense[k]);
             }
             // left-right mirror of the whole batch: the right acceleration, the forward and
-            // up angular rates, the frame heading and the label's east component change sign
+            // up angular rates, the frame heading, the label's east component and the dense
+            // labels' right component change sign
             if cfg.mirror && rng.uniform() < 0.5 {
+                mirror_windows(&mut x);
                 for j in 0..nw {
-                    for ch in [1usize, 3, 5] {
-                        for v in &mut x[j * per + ch * WINDOW..j * per + (ch + 1) * WINDOW] {
-                            *v = -*v;
-                        }
-                    }
                     sin[j] = -sin[j];
+                    yd[2 * j + 1] = -yd[2 * j + 1];
                 }
                 mirrored = true;
             }
@@ -323,7 +437,15 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
             } else {
                 res.sqr()?.sum(1)?.mean_all()?
             };
-            opt.backward_step(&loss)?;
+            let total = if cfg.dense_weight > 0.0 {
+                let yd = Tensor::from_vec(yd, (nw, 2), &dev)?;
+                let dl = dense_mse(&out, &yd)?;
+                dense_sum += f64::from(dl.to_scalar::<f32>()?) * chunk.len() as f64;
+                (&loss + (dl * cfg.dense_weight)?)?
+            } else {
+                loss.clone()
+            };
+            opt.backward_step(&total)?;
             let l = f64::from(loss.to_scalar::<f32>()?);
             if !l.is_finite() {
                 bail!("non-finite loss at epoch {epoch}");
@@ -332,10 +454,35 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
             count += chunk.len();
         }
         last_loss = sum / count as f64;
+        let dense = if cfg.dense_weight > 0.0 {
+            format!(" dense mse {:.4}", dense_sum / count as f64)
+        } else {
+            String::new()
+        };
         eprintln!(
-            "  epoch {epoch:>3} {} loss {last_loss:.4} lr {lr:.2e}",
+            "  epoch {epoch:>3} {} loss {last_loss:.4}{dense} lr {lr:.2e}",
             if nll { "nll" } else { "mse" }
         );
+        if epoch + cfg.swa_epochs >= cfg.epochs {
+            let vars = varmap.all_vars();
+            swa = Some(match swa {
+                None => vars
+                    .iter()
+                    .map(|v| v.as_tensor().detach())
+                    .collect::<Vec<_>>(),
+                Some(acc) => acc
+                    .iter()
+                    .zip(&vars)
+                    .map(|(a, v)| a + v.as_tensor().detach())
+                    .collect::<Result<Vec<_>, _>>()?,
+            });
+        }
+    }
+    if let Some(acc) = swa {
+        let n = cfg.swa_epochs.min(cfg.epochs) as f64;
+        for (a, v) in acc.iter().zip(varmap.all_vars()) {
+            v.set(&(a / n)?)?;
+        }
     }
     Ok((varmap, last_loss))
 }
