@@ -37,6 +37,8 @@ pub struct Scores {
     pub hybrid_len: Vec<f64>,
     /// Error of the hybrid "step model's length along the learned direction", m.
     pub hybrid_dir: Vec<f64>,
+    /// Per segment: truth, steps, learned displacement (m) and learned covariance (m²).
+    pub vectors: Vec<[f64; 9]>,
 }
 
 fn along(len: f64, dir: [f64; 2]) -> [f64; 2] {
@@ -99,6 +101,9 @@ impl Scores {
             let d = rotate_heading(d, w.offset_fold);
             let c = rotate_cov(c, w.offset_fold);
             let r = [s.truth[0] - d[0], s.truth[1] - d[1]];
+            self.vectors.push([
+                s.truth[0], s.truth[1], s.steps[0], s.steps[1], d[0], d[1], c[0], c[1], c[2],
+            ]);
             self.learned.push(r[0].hypot(r[1]));
             self.steps
                 .push((s.truth[0] - s.steps[0]).hypot(s.truth[1] - s.steps[1]));
@@ -151,6 +156,7 @@ impl Scores {
         self.dir_steps.extend(&o.dir_steps);
         self.hybrid_len.extend(&o.hybrid_len);
         self.hybrid_dir.extend(&o.hybrid_dir);
+        self.vectors.extend(&o.vectors);
     }
 
     /// A one-line summary.

@@ -171,6 +171,8 @@ fn main() -> Result<()> {
                     s.add(&model, w)?;
                 }
                 println!("{f}: {}", s.summary());
+                let js = models_dir(&a).join(format!("vectors_{}.json", f.replace('/', "_")));
+                std::fs::write(&js, serde_json::to_vec(&s.vectors)?)?;
                 pooled.extend(&s);
             }
             println!("pooled: {}", pooled.summary());
