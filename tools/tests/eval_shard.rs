@@ -4,10 +4,9 @@
 //! set, a repeated shard or shards of another run are refused.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 mod common;
-use common::wipdr;
+use common::{wipdr, wipdr_fails as fails};
 
 fn fixture() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"))
@@ -46,16 +45,6 @@ fn plain_and_merged(data: &[&Path], cwd: &Path, cache: &Path) -> (Vec<u8>, Vec<u
     assert!(out.contains("merged 4 shard files"), "{out}");
     let read = |name: &str| std::fs::read(cwd.join(name)).expect("JSON written");
     (read("plain.json"), read("merged.json"))
-}
-
-fn fails(args: &[&str], cwd: &Path) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_wipdr"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("wipdr runs");
-    assert!(!out.status.success(), "wipdr {args:?} succeeded");
-    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 #[test]

@@ -6,10 +6,9 @@
 //! without `odometry = "learned"`, without the floor's file, and with `--shard`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 mod common;
-use common::wipdr;
+use common::{wipdr, wipdr_fails as fails};
 
 fn fixture() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/sim/F1"))
@@ -39,16 +38,6 @@ fn with_forward_bias(weights: &[u8], delta: f32) -> Vec<u8> {
     let old = f32::from_le_bytes(out[at..at + 4].try_into().expect("4 bytes"));
     out[at..at + 4].copy_from_slice(&(old + delta).to_le_bytes());
     out
-}
-
-fn fails(args: &[&str], cwd: &Path) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_wipdr"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("wipdr runs");
-    assert!(!out.status.success(), "wipdr {args:?} succeeded");
-    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 /// The JSON document of a run, without `motion.weights`.
@@ -83,20 +72,27 @@ fn each_floor_runs_the_network_held_out_on_it() {
     .expect("weights");
     let data = fixture().display().to_string();
     let cache = cwd.join("cache").display().to_string();
-    let eval = |extra: &[&str]| {
-        let mut args = vec![
+    // `wipdr --cache-dir C eval --data FIXTURE --schemes pdr,ekf ARGS...`
+    let command = |args: &[&str]| -> Vec<String> {
+        [
             "--cache-dir",
-            cache.as_str(),
+            &cache,
             "eval",
             "--data",
-            data.as_str(),
+            &data,
             "--schemes",
             "pdr,ekf",
-            "--config",
-            "learned.toml",
-        ];
+        ]
+        .iter()
+        .chain(args)
+        .map(|s| (*s).to_string())
+        .collect()
+    };
+    let eval = |extra: &[&str]| {
+        let mut args = vec!["--config", "learned.toml"];
         args.extend(extra);
-        wipdr(&args, cwd)
+        let argv = command(&args);
+        wipdr(&argv.iter().map(String::as_str).collect::<Vec<_>>(), cwd)
     };
 
     eval(&["--json", "shipped.json"]);
@@ -137,36 +133,24 @@ fn each_floor_runs_the_network_held_out_on_it() {
         "a network with another bias moves the segment error"
     );
 
-    let base = [
-        "--cache-dir",
-        cache.as_str(),
-        "eval",
-        "--data",
-        data.as_str(),
-        "--schemes",
-        "pdr",
-    ];
-    let with = |extra: &[&str]| -> Vec<String> {
-        base.iter().chain(extra).map(|s| (*s).to_string()).collect()
-    };
     let run_fails = |args: Vec<String>| {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         fails(&args, cwd)
     };
     let same_dir = same.to_str().expect("utf-8");
-    let err = run_fails(with(&[
+    let err = run_fails(command(&[
         "--config",
         "steps.toml",
         "--odometry-holdout",
         same_dir,
     ]));
     assert!(err.contains("odometry = \"learned\""), "{err}");
-    let err = run_fails(with(&["--odometry-holdout", same_dir]));
+    let err = run_fails(command(&["--odometry-holdout", same_dir]));
     assert!(
         err.contains("odometry = \"learned\""),
         "default config: {err}"
     );
-    let err = run_fails(with(&[
+    let err = run_fails(command(&[
         "--config",
         "learned.toml",
         "--odometry-holdout",
@@ -176,7 +160,7 @@ fn each_floor_runs_the_network_held_out_on_it() {
         err.contains("\"sim/F1\"") && err.contains("sim_F1.safetensors"),
         "{err}"
     );
-    let err = run_fails(with(&[
+    let err = run_fails(command(&[
         "--config",
         "learned.toml",
         "--odometry-holdout",

@@ -267,19 +267,24 @@ fn dense_mse(out: &Tensor, y: &Tensor) -> Result<Tensor> {
     Ok((out.narrow(1, 0, 2)? - y)?.sqr()?.sum(1)?.mean_all()?)
 }
 
+/// AdamW over every variable of `varmap`.
+fn adamw(varmap: &VarMap, lr: f64, weight_decay: f64) -> Result<candle_nn::AdamW> {
+    Ok(candle_nn::AdamW::new(
+        varmap.all_vars(),
+        candle_nn::ParamsAdamW {
+            lr,
+            weight_decay,
+            ..Default::default()
+        },
+    )?)
+}
+
 /// Pretraining on every window with the step model's dense labels (MSE), its own AdamW
 /// and batch order (a generator of its own, so that the segment epochs' order does not
 /// depend on it).
 fn pretrain(net: &Net, varmap: &VarMap, set: &TrainSet, cfg: &TrainConfig) -> Result<()> {
     let dev = Device::Cpu;
-    let mut opt = candle_nn::AdamW::new(
-        varmap.all_vars(),
-        candle_nn::ParamsAdamW {
-            lr: cfg.pretrain_lr,
-            weight_decay: cfg.weight_decay,
-            ..Default::default()
-        },
-    )?;
+    let mut opt = adamw(varmap, cfg.pretrain_lr, cfg.weight_decay)?;
     let mut rng = Rng::new(cfg.seed ^ 0xDE45_E000);
     let mut order: Vec<usize> = (0..set.dense.len()).collect();
     let per = CHANNELS * WINDOW;
@@ -335,14 +340,7 @@ pub fn train(walks: &[&WalkRec], cfg: &TrainConfig) -> Result<(VarMap, f64)> {
     if cfg.pretrain_epochs > 0 {
         pretrain(&net, &varmap, &set, cfg)?;
     }
-    let mut opt = candle_nn::AdamW::new(
-        varmap.all_vars(),
-        candle_nn::ParamsAdamW {
-            lr: cfg.lr,
-            weight_decay: cfg.weight_decay,
-            ..Default::default()
-        },
-    )?;
+    let mut opt = adamw(&varmap, cfg.lr, cfg.weight_decay)?;
     let mut rng = Rng::new(cfg.seed ^ 0x5EED);
     let mut order: Vec<usize> = (0..set.segments.len()).collect();
     let mut last_loss = f64::NAN;
