@@ -2,7 +2,10 @@
 the leave-one-floor-out segments: each segment's step displacement (isotropic covariance
 (k x length)^2 + 0.05 m^2) and learned displacement (its learned covariance x g) combined by
 inverse covariance, k and g picked on the other four floors (the held-out floor never
-chooses them). Also prints the correlation of the two sources' error vectors.
+chooses them). Also prints the correlation of the two sources' error vectors, and the
+learned covariance's calibration: the smallest scale that puts 95 % of the four training
+floors' segments inside their 95 % ellipse, and the share of the held-out floor's segments
+inside with it.
 
     odometry-train score --cache C          # writes C/lofo/vectors_<floor>.json
     python3 combine.py C/lofo
@@ -28,6 +31,21 @@ def combined_error(v, k, g):
     ry = ib * lx + ic * ly + sy / vs
     ex, ey = pa * rx + pb * ry, pb * rx + pc * ry
     return math.hypot(tx - ex, ty - ey)
+
+
+CHI2_2_95 = 5.991464547107979
+
+
+def inside_95(v, g):
+    """Whether the segment's truth lies in the learned 95 % ellipse with the covariance x g."""
+    rx, ry = v[0] - v[4], v[1] - v[5]
+    a, b, c = g * v[6], g * v[7], g * v[8]
+    det = a * c - b * b
+    return det > 0 and (c * rx * rx - 2 * b * rx * ry + a * ry * ry) / det <= CHI2_2_95
+
+
+def coverage(vs, g):
+    return sum(inside_95(v, g) for v in vs) / len(vs)
 
 
 def mean(xs):
@@ -62,6 +80,18 @@ def main(folder):
     num = sum(a[0] * b[0] + a[1] * b[1] for a, b in zip(es, el))
     den = math.sqrt(sum(a[0] ** 2 + a[1] ** 2 for a in es) * sum(b[0] ** 2 + b[1] ** 2 for b in el))
     print(f"correlation of the two sources' error vectors: {num / den:.3f}")
+    held = 0.0
+    for f, vs in floors.items():
+        train = [v for other, vv in floors.items() if other != f for v in vv]
+        scales = [x / 100 for x in range(10, 401)]
+        g = next((x for x in scales if coverage(train, x) >= 0.95), scales[-1])
+        c = coverage(vs, g)
+        held += c * len(vs)
+        print(f"{f}: covariance x {g:.2f} (95 % on the training floors): "
+              f"{100 * coverage(vs, 1.0):.1f} % -> {100 * c:.1f} % inside the ellipse")
+    n = sum(len(vs) for vs in floors.values())
+    print(f"pooled: {100 * held / n:.1f} % inside with each floor's scale "
+          f"({100 * coverage(allv, 1.0):.1f} % unscaled)")
 
 
 if __name__ == "__main__":
