@@ -71,12 +71,17 @@ def ilc_fused(runs):
                 cells += ["(causal)", "(causal)"]
                 continue
             a, b = steps["pooled"][name], learned["pooled"][name]
-            cells += [f"**{a['mean']:.2f}** / {a['p95']:.2f}" if a["mean"] <= b["mean"]
-                      else f"{a['mean']:.2f} / {a['p95']:.2f}",
-                      f"**{b['mean']:.2f}** / {b['p95']:.2f}" if b["mean"] < a["mean"]
-                      else f"{b['mean']:.2f} / {b['p95']:.2f}"]
+            cells += better_bold(a["mean"], b["mean"], f" / {a['p95']:.2f}", f" / {b['p95']:.2f}")
         out.append(row(*cells))
     return "\n".join(out)
+
+
+def better_bold(steps, learned, steps_rest="", learned_rest=""):
+    """Two cells, `steps` and `learned` with two decimals, each followed by its `rest`; the
+    smaller of the two in bold (the steps on a tie)."""
+    bold = sys.modules["recipes.evaluation"].bold
+    return [bold(f"{steps:.2f}", steps <= learned) + steps_rest,
+            bold(f"{learned:.2f}", learned < steps) + learned_rest]
 
 
 def inside(summary):
@@ -127,7 +132,6 @@ def ipin_fused(runs):
             if name == "pdr" and steps is so:
                 cells += ["(causal)", "(causal)"]
                 continue
-            cells += [f"**{a:.2f}**" if a <= b else f"{a:.2f}",
-                      f"**{b:.2f}**" if b < a else f"{b:.2f}"]
+            cells += better_bold(a, b)
         out.append(row(*cells))
     return "\n".join(out)

@@ -378,7 +378,7 @@ fn check_scored(report: &EvalReport) -> Result<()> {
 
 /// The file of `--odometry-holdout DIR` for the floor labelled `label`: `site1/F1` ->
 /// `DIR/site1_F1.safetensors` (the names `odometry-train lofo` writes).
-pub fn holdout_weights_path(dir: &Path, label: &str) -> PathBuf {
+fn holdout_weights_path(dir: &Path, label: &str) -> PathBuf {
     dir.join(format!("{}.safetensors", label.replace('/', "_")))
 }
 
@@ -393,7 +393,8 @@ fn attach_holdout_odometry(
     use wipdr_positioning::config::Odometry;
     if cfg.positioner.odometry != Odometry::Learned {
         bail!(
-            "--odometry-holdout {}: the config's motion source is `{}`, so the weights would              not be read; set `odometry = \"learned\"` in the config",
+            "--odometry-holdout {}: the config's motion source is `{}`, so the weights would \
+             not be read; set `odometry = \"learned\"` in the config",
             dir.display(),
             cfg.positioner.odometry.name()
         );
